@@ -1,0 +1,27 @@
+"""Conversions between ROS 2 messages and numpy / core records, by field name.
+
+Reading works on rclpy messages and on ``rosbags`` dataclasses alike; building messages goes
+through a :class:`~msg_adapters.types.MessageTypes` (rclpy by default, or a rosbags typestore).
+Every conversion error is an :class:`AdapterError` whose text says what is wrong.
+"""
+from .errors import AdapterError
+from .image import ENCODING_DTYPES, array_to_image, image_to_array
+from .markers import covariance_ellipse, track_markers
+from .pointcloud import array_to_cloud, cloud_to_array, dtype_to_fields, fields_to_dtype
+from .records import (DETECTION_DTYPE, FEATURE_NAMES, GPF_TRACK_DTYPE, RECORD_DTYPES, REGION_DTYPE,
+                      TRACK_DTYPE, TRUTH_DTYPE)
+from .sector import SectorPair, SectorPairer, geometry_to_scan, scan_to_geometry, sector_from_messages
+from .stamps import header, header_ns, ns_to_stamp, stamp_to_ns
+from .types import MessageTypes, RclpyTypes, RosbagsTypes, rclpy_types
+
+__all__ = [
+    'AdapterError',
+    'ENCODING_DTYPES', 'image_to_array', 'array_to_image',
+    'array_to_cloud', 'cloud_to_array', 'dtype_to_fields', 'fields_to_dtype',
+    'DETECTION_DTYPE', 'TRACK_DTYPE', 'TRUTH_DTYPE', 'REGION_DTYPE', 'GPF_TRACK_DTYPE',
+    'FEATURE_NAMES', 'RECORD_DTYPES',
+    'SectorPair', 'SectorPairer', 'geometry_to_scan', 'scan_to_geometry', 'sector_from_messages',
+    'track_markers', 'covariance_ellipse',
+    'header', 'header_ns', 'ns_to_stamp', 'stamp_to_ns',
+    'MessageTypes', 'RclpyTypes', 'RosbagsTypes', 'rclpy_types',
+]

@@ -1,0 +1,31 @@
+"""ament_python build of sonar_tracking (also installable with plain pip)."""
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'sonar_tracking'
+
+# Every executable is a console script installed into lib/sonar_tracking (see setup.cfg),
+# which is where `ros2 run sonar_tracking NAME` looks.
+CONSOLE_SCRIPTS = [
+    'sonar_eval = sonar_tracking.tools.sonar_eval:main',
+]
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(include=[PACKAGE, PACKAGE + '.*', 'msg_adapters', 'msg_adapters.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
+        ('share/' + PACKAGE, ['package.xml']),
+        ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
+    ],
+    install_requires=['setuptools'],
+    zip_safe=False,
+    maintainer='sonar_tracking developers',
+    maintainer_email='sonar-tracking@example.org',
+    description='Sonar tracking stack for AUVs: ESC thresholding, IMM-IPDA, FLS features, GPF.',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    entry_points={'console_scripts': CONSOLE_SCRIPTS},
+)
