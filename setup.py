@@ -8,6 +8,7 @@ PACKAGE = 'sonar_tracking'
 # Every executable is a console script installed into lib/sonar_tracking (see setup.cfg),
 # which is where `ros2 run sonar_tracking NAME` looks.
 CONSOLE_SCRIPTS = [
+    'seaking_sim = sonar_tracking.nodes.seaking_sim:main',
     'sonar_eval = sonar_tracking.tools.sonar_eval:main',
 ]
 
@@ -15,6 +16,7 @@ setup(
     name=PACKAGE,
     version='0.1.0',
     packages=find_packages(include=[PACKAGE, PACKAGE + '.*', 'msg_adapters', 'msg_adapters.*']),
+    package_data={PACKAGE: ['data/*']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),

@@ -37,3 +37,74 @@ def graph_node():
     yield node
     node.destroy_node()
     rclpy.shutdown(context=context)
+
+
+@pytest.fixture
+def ros(graph_node):
+    """The probe node spun by a background executor, plus helpers to wait on futures and conditions."""
+    import threading
+    import time
+
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=graph_node.context)
+    executor.add_node(graph_node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+
+    class Ros:
+        node = graph_node
+
+        @staticmethod
+        def wait(predicate, timeout=20.0, what='condition'):
+            deadline = time.monotonic() + timeout
+            while time.monotonic() < deadline:
+                if predicate():
+                    return
+                time.sleep(0.02)
+            raise AssertionError(f'timed out after {timeout} s waiting for {what}')
+
+        @staticmethod
+        def result(future, timeout=20.0):
+            Ros.wait(future.done, timeout, 'a service response')
+            return future.result()
+
+    yield Ros
+    executor.shutdown(timeout_sec=2.0)
+    executor.remove_node(graph_node)
+    thread.join(timeout=5.0)
+    for sub in list(graph_node.subscriptions):
+        graph_node.destroy_subscription(sub)
+    for client in list(graph_node.clients):
+        graph_node.destroy_client(client)
+
+
+@pytest.fixture
+def launch():
+    """Start package nodes as child processes (``python -m sonar_tracking.nodes.NAME``); killed at teardown."""
+    import signal
+    import subprocess
+    import sys
+
+    procs = []
+
+    def start(module: str, *params: str, params_file: str | None = None) -> subprocess.Popen:
+        cmd = [sys.executable, '-m', f'sonar_tracking.nodes.{module}', '--ros-args']
+        if params_file:
+            cmd += ['--params-file', str(params_file)]
+        for p in params:
+            cmd += ['-p', p]
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                start_new_session=True)
+        procs.append(proc)
+        return proc
+
+    yield start
+    for proc in procs:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGINT)
+            try:
+                proc.wait(10)
+            except Exception:
+                os.killpg(proc.pid, signal.SIGKILL)
+                proc.wait()

@@ -30,7 +30,9 @@ class SectorGeometry:
     n_beams : number of columns (beams).
     range_min, range_max : centres of the first and last range bin [m].
     n_bins : number of rows (range bins).
-    ping_period : time between two pings of the head [s] (LaserScan ``time_increment``).
+    ping_period : time between the pings of consecutive columns [s] (LaserScan
+        ``time_increment``); negative when the head swept toward decreasing bearing, so column 0
+        was pinged last; 0 when all beams are formed at once.
     scan_time : time between two sectors [s].
     """
 
@@ -59,8 +61,8 @@ class SectorGeometry:
                                 f'{self.range_min}, {self.range_max}')
         if self.n_bins > 1 and self.range_max == self.range_min:
             raise GeometryError(f'{self.n_bins} range bins need range_max > range_min')
-        if self.ping_period < 0.0 or self.scan_time < 0.0:
-            raise GeometryError('ping_period and scan_time must be >= 0')
+        if self.scan_time < 0.0:
+            raise GeometryError(f'scan_time = {self.scan_time} must be >= 0')
 
     @property
     def angle_max(self) -> float:

@@ -5,7 +5,10 @@ it ``number`` times (chosen so a repeat lasts at least ``min_time``) with the ga
 off, as :mod:`timeit` does; the table reports the median time per call and its spread (25th to
 75th percentile) over repeats. A case may name another as ``compare_to``: its ratio is the other
 case's median divided by its own, taken in the same run. ``limit_s`` is the target an issue set;
-the table says whether the median meets it. Timing lives here and never in tests.
+the table says whether the median meets it. A ``self_timed`` case returns the seconds it measured
+itself (for work that spans processes, such as a node's throughput), and ``derived`` turns the
+result into further figures shown beside it (such as "x real time"). Timing lives here and never
+in tests.
 """
 from __future__ import annotations
 
@@ -39,6 +42,8 @@ class Case:
     limit_s: float | None = None
     repeats: int = 30
     min_time: float = 0.002
+    self_timed: bool = False
+    derived: Callable[['Result'], dict] | None = None
 
 
 @dataclass
@@ -84,6 +89,9 @@ def cases() -> dict[str, Case]:
 def run_case(case: Case, repeats: int | None = None) -> Result:
     """Time one case."""
     fn = case.make()
+    if case.self_timed:
+        t = np.asarray([float(fn()) for _ in range(repeats or case.repeats)])
+        return _result(case, t, 1)
     fn()  # warm-up: imports, caches, first-call allocation
     number = 1
     while True:
@@ -105,13 +113,19 @@ def run_case(case: Case, repeats: int | None = None) -> Result:
     finally:
         if enabled:
             gc.enable()
-    t = np.asarray(times)
+    return _result(case, np.asarray(times), number)
+
+
+def _result(case: Case, t: np.ndarray, number: int) -> Result:
     med = float(np.median(t))
-    return Result(name=case.name, group=case.group, description=case.description, median_s=med,
-                  p25_s=float(np.percentile(t, 25)), p75_s=float(np.percentile(t, 75)),
-                  min_s=float(t.min()), max_s=float(t.max()), repeats=len(t), number=number,
-                  compare_to=case.compare_to, limit_s=case.limit_s,
-                  meets_limit=None if case.limit_s is None else med <= case.limit_s)
+    r = Result(name=case.name, group=case.group, description=case.description, median_s=med,
+               p25_s=float(np.percentile(t, 25)), p75_s=float(np.percentile(t, 75)),
+               min_s=float(t.min()), max_s=float(t.max()), repeats=len(t), number=number,
+               compare_to=case.compare_to, limit_s=case.limit_s,
+               meets_limit=None if case.limit_s is None else med <= case.limit_s)
+    if case.derived is not None:
+        r.extra = case.derived(r)
+    return r
 
 
 def run(patterns: list[str] | None = None, repeats: int | None = None,
@@ -146,12 +160,13 @@ def _fmt_time(s: float) -> str:
 
 def format_table(results: list[Result]) -> str:
     """Plain-text table: case, median, spread (p25-p75), repeats x calls, ratio, limit."""
-    rows = [('case', 'median', 'p25 .. p75', 'runs', 'ratio', 'limit')]
+    rows = [('case', 'median', 'p25 .. p75', 'runs', 'ratio', 'limit', 'note')]
     for r in results:
         ratio = f'{r.ratio:.1f}x vs {r.compare_to}' if r.ratio is not None else ''
         limit = '' if r.limit_s is None else f'{"ok" if r.meets_limit else "OVER"} < {_fmt_time(r.limit_s)}'
+        note = ', '.join(f'{k} {v:.3g}' if isinstance(v, float) else f'{k} {v}' for k, v in r.extra.items())
         rows.append((r.name, _fmt_time(r.median_s), f'{_fmt_time(r.p25_s)} .. {_fmt_time(r.p75_s)}',
-                     f'{r.repeats}x{r.number}', ratio, limit))
+                     f'{r.repeats}x{r.number}', ratio, limit, note))
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
     lines = ['  '.join(v.ljust(w) for v, w in zip(row, widths)).rstrip() for row in rows]
     lines.insert(1, '  '.join('-' * w for w in widths))

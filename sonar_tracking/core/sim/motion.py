@@ -1,0 +1,161 @@
+"""Target and platform motion for the simulator.
+
+Every trajectory gives the state ``[x, y, vx, vy]`` and a body heading at any time ``t >= 0`` [s]
+in the world frame (REP-103: x forward, y left, angles counter-clockwise).
+
+* :class:`ScriptedTrajectory`: constant velocity and constant-turn-rate segments, in closed
+  form. A positive turn rate turns counter-clockwise (the CCW segments of ESC paper Table 2); the
+  paper's eq. (4) matrix with ``Omega > 0`` rotates the velocity the same way in a right-handed
+  x-y frame, so our CCW model is eq. (4) with ``+Omega`` and CW is ``-Omega``.
+* :class:`DraggedTrajectory`: the FLS paper's targets "dragged by ropes and current": a nominal
+  straight tow plus a smooth random deviation (a sum of random sinusoids in a band of periods),
+  and a heading that wobbles around the tow direction so the target's aspect keeps changing.
+  The deviation is bounded and has an analytic velocity, and the whole path is fixed by the
+  generator at construction, so it can be sampled at any time.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ['Trajectory', 'StaticTrajectory', 'Segment', 'ScriptedTrajectory', 'DraggedTrajectory', 'BandLimitedNoise']
+
+
+class Trajectory:
+    """Interface: ``state(t) -> [x, y, vx, vy]`` and ``heading(t)`` [rad]."""
+
+    def state(self, t: float) -> np.ndarray:
+        raise NotImplementedError
+
+    def heading(self, t: float) -> float:
+        """Body heading; by default the direction of motion (kept when the target stops)."""
+        s = self.state(t)
+        if math.hypot(s[2], s[3]) < 1e-9:
+            return 0.0
+        return math.atan2(s[3], s[2])
+
+
+@dataclass(frozen=True)
+class StaticTrajectory(Trajectory):
+    """A target or platform that does not move."""
+
+    x: float
+    y: float
+    yaw: float = 0.0
+
+    def state(self, t: float) -> np.ndarray:
+        return np.array([self.x, self.y, 0.0, 0.0])
+
+    def heading(self, t: float) -> float:
+        return self.yaw
+
+
+@dataclass(frozen=True)
+class Segment:
+    """``duration`` seconds at ``turn_rate`` [rad/s] (0 = constant velocity, > 0 = CCW)."""
+
+    duration: float
+    turn_rate: float = 0.0
+
+
+@dataclass(frozen=True)
+class ScriptedTrajectory(Trajectory):
+    """Piecewise CV / CTR motion from ``(x0, y0)`` with initial velocity ``(vx0, vy0)``.
+
+    After the last segment the target keeps a constant velocity.
+    """
+
+    x0: float
+    y0: float
+    vx0: float
+    vy0: float
+    segments: tuple[Segment, ...] = ()
+    _knots: list = field(default_factory=list, init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # State at the start of every segment, and at the end of the last one.
+        t, s = 0.0, np.array([self.x0, self.y0, self.vx0, self.vy0], dtype=float)
+        knots = [(0.0, s)]
+        for seg in self.segments:
+            if seg.duration <= 0:
+                raise ValueError(f'segment duration {seg.duration} must be > 0')
+            s = _propagate(s, seg.turn_rate, seg.duration)
+            t += seg.duration
+            knots.append((t, s))
+        object.__setattr__(self, '_knots', knots)
+
+    def state(self, t: float) -> np.ndarray:
+        t = max(0.0, float(t))
+        elapsed = 0.0
+        for i, seg in enumerate(self.segments):
+            if t <= elapsed + seg.duration:
+                return _propagate(self._knots[i][1], seg.turn_rate, t - elapsed)
+            elapsed += seg.duration
+        t_last, s_last = self._knots[-1]
+        return _propagate(s_last, 0.0, t - t_last)
+
+
+def _propagate(s: np.ndarray, omega: float, dt: float) -> np.ndarray:
+    """Exact CV (``omega = 0``) or CTR motion over ``dt`` (the flow of ESC eqs. 3-4)."""
+    x, y, vx, vy = s
+    if abs(omega) < 1e-12:
+        return np.array([x + vx * dt, y + vy * dt, vx, vy])
+    sw, cw = math.sin(omega * dt), math.cos(omega * dt)
+    return np.array([x + (sw * vx - (1 - cw) * vy) / omega, y + ((1 - cw) * vx + sw * vy) / omega,
+                     cw * vx - sw * vy, sw * vx + cw * vy])
+
+
+class BandLimitedNoise:
+    """A smooth zero-mean random signal: a sum of sinusoids with periods in ``[p_min, p_max]``.
+
+    ``value(t)`` has standard deviation ``std`` per component; ``rate(t)`` is its exact derivative.
+    """
+
+    def __init__(self, rng: np.random.Generator, std: float, p_min: float, p_max: float,
+                 dims: int = 2, n_terms: int = 8) -> None:
+        if p_min <= 0 or p_max < p_min:
+            raise ValueError('need 0 < p_min <= p_max')
+        self.omega = 2 * math.pi / rng.uniform(p_min, p_max, size=(dims, n_terms))
+        self.phase = rng.uniform(0.0, 2 * math.pi, size=(dims, n_terms))
+        # Equal power per term; a sinusoid of amplitude a has variance a^2 / 2.
+        self.amp = np.full((dims, n_terms), std * math.sqrt(2.0 / n_terms))
+
+    def value(self, t: float) -> np.ndarray:
+        return np.sum(self.amp * np.sin(self.omega * t + self.phase), axis=1)
+
+    def rate(self, t: float) -> np.ndarray:
+        return np.sum(self.amp * self.omega * np.cos(self.omega * t + self.phase), axis=1)
+
+
+class DraggedTrajectory(Trajectory):
+    """A towed target: ``start + velocity * t`` plus a smooth random deviation, wobbling heading.
+
+    Parameters
+    ----------
+    start, velocity : nominal tow start [m] and velocity [m/s].
+    rng : the generator that fixes the random deviation and heading wobble.
+    deviation_std : std of the position deviation from the tow line [m].
+    periods : band of periods of the deviation [s]; short periods give sudden changes.
+    yaw_std : std of the heading wobble around the tow direction [rad].
+    """
+
+    def __init__(self, start: tuple[float, float], velocity: tuple[float, float], rng: np.random.Generator,
+                 deviation_std: float = 0.3, periods: tuple[float, float] = (4.0, 30.0),
+                 yaw_std: float = math.radians(25.0), yaw_offset: float = 0.0) -> None:
+        self.start = np.asarray(start, dtype=float)
+        self.velocity = np.asarray(velocity, dtype=float)
+        self.deviation = BandLimitedNoise(rng, deviation_std, *periods, dims=2)
+        self.yaw = BandLimitedNoise(rng, yaw_std, periods[0] * 2, periods[1] * 2, dims=1)
+        speed = float(np.hypot(*self.velocity))
+        self.base_heading = (math.atan2(self.velocity[1], self.velocity[0]) if speed > 0 else 0.0) + yaw_offset
+
+    def state(self, t: float) -> np.ndarray:
+        t = max(0.0, float(t))
+        p = self.start + self.velocity * t + self.deviation.value(t)
+        v = self.velocity + self.deviation.rate(t)
+        return np.array([p[0], p[1], v[0], v[1]])
+
+    def heading(self, t: float) -> float:
+        return self.base_heading + float(self.yaw.value(max(0.0, float(t)))[0])

@@ -1,0 +1,128 @@
+"""The simulator: a scenario's scene seen by one sensor, sector after sector.
+
+:class:`SimConfig` is the whole configuration (what ``seaking_sim`` exposes as parameters);
+:meth:`SimConfig.for_scenario` gives a scenario's defaults (sensor preset, clutter rate, SNR,
+duration, sensor window). :class:`Simulator` draws the scene's random parts and the per-sector
+noise from two independent streams spawned from the injected generator, so changing how pings are
+grouped into sectors never changes where the targets go.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..config import Config, ConfigError, setting
+from .amplitude import AmplitudeConfig, AmplitudeModel
+from .harbour import HarbourConfig, HarbourSonar
+from .presets import SCENARIOS, SENSOR_PRESETS, build_scene, scenario_info
+from .scene import Scene
+from .seaking import SeaKingConfig, SeaKingSonar
+from .sensor import SimSector
+
+__all__ = ['SimConfig', 'Simulator']
+
+
+@dataclass(frozen=True)
+class SimConfig(Config):
+    """Scenario, sensor and clutter settings of the simulator."""
+
+    scenario: str = setting('scenario2', 'scenario preset (ESC scenario1/2, FLS fls1..fls14, sea_trial, clutter)',
+                            choices=tuple(SCENARIOS), read_only=True)
+    preset: str = setting('harbour', 'sensor preset', choices=tuple(SENSOR_PRESETS), read_only=True)
+    seed: int = setting(0, 'random seed: same seed, same messages', low=0, high=2**63 - 1, read_only=True)
+    sector_size: int = setting(10, 'pings per published sector (SeaKing; a harbour scan is one sector)',
+                               low=1, high=8000, read_only=True)
+    duration: float = setting(100.0, 'scenario length, 0 = no end', unit='s', low=0.0, read_only=True)
+    clutter_lambda: float = setting(1.6, 'clutter rate lam of eq. (15) outside any clutter region',
+                                    low=1e-3, high=1e3)
+    snr_db: float = setting(8.0, 'target signal-to-noise ratio', unit='dB', low=-20.0, high=60.0)
+    amplitude: AmplitudeConfig = dataclasses.field(default_factory=AmplitudeConfig)
+    harbour: HarbourConfig = dataclasses.field(default_factory=HarbourConfig)
+    seaking: SeaKingConfig = dataclasses.field(default_factory=SeaKingConfig)
+
+    def validate(self) -> None:
+        info = scenario_info(self.scenario)
+        if self.preset not in info.sensors:
+            raise ConfigError(f'scenario {self.scenario} runs on {"/".join(info.sensors)}, not preset {self.preset}')
+
+    @classmethod
+    def for_scenario(cls, scenario: str, preset: str = '', **flat) -> 'SimConfig':
+        """Defaults of ``scenario`` on ``preset`` ('' = the scenario's sensor), then ``flat`` overrides."""
+        try:
+            info = scenario_info(scenario)
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        preset = preset or info.sensors[0]
+        if preset not in SENSOR_PRESETS:
+            raise ConfigError(f'unknown sensor preset {preset!r}; known: {sorted(SENSOR_PRESETS)}')
+        values = {'scenario': scenario, 'preset': preset, 'duration': info.duration,
+                  'clutter_lambda': info.clutter_lambda, 'snr_db': info.snr_db}
+        values.update(SENSOR_PRESETS[preset])
+        values.update(dict(info.overrides))
+        values.update(flat)
+        return cls.from_flat(values)
+
+    @property
+    def is_harbour(self) -> bool:
+        return self.preset == 'harbour'
+
+
+class Simulator:
+    """Sectors of a scenario; ``next_sector()`` returns None once the scenario has ended."""
+
+    def __init__(self, config: SimConfig, rng: np.random.Generator) -> None:
+        self.config = config
+        scene_rng, self.noise_rng = rng.spawn(2)
+        self.scene: Scene = build_scene(config.scenario, scene_rng, config.clutter_lambda, config.snr_db,
+                                        config.duration, config.preset)
+        amplitude = AmplitudeModel(config.amplitude)
+        if config.is_harbour:
+            self.sensor: HarbourSonar | SeaKingSonar = HarbourSonar(config.harbour, amplitude)
+        else:
+            self.sensor = SeaKingSonar(config.seaking, config.sector_size, amplitude)
+
+    @property
+    def finished(self) -> bool:
+        """Whether the next sector would start after the end of the scenario."""
+        return self.sensor.next_time > self.scene.duration + 1e-9
+
+    def next_sector(self) -> SimSector | None:
+        """The next sector, or None after the scenario's duration."""
+        if self.finished:
+            return None
+        return self.sensor.next_sector(self.scene, self.noise_rng)
+
+    def truth(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Target ids and world states ``[x, y, vx, vy]`` at ``t``."""
+        return self.scene.truth(t)
+
+    def set_clutter_lambda(self, lam: float) -> None:
+        """Change the background clutter rate from the next sector on."""
+        self.scene.lam = float(lam)
+
+    def set_snr_db(self, snr_db: float) -> None:
+        """Change every target's SNR from the next sector on."""
+        for target in self.scene.targets:
+            target.snr_db = float(snr_db)
+
+    @property
+    def sweep_period(self) -> float:
+        """Time of a full image: a harbour scan or a SeaKing sweep [s]."""
+        if isinstance(self.sensor, HarbourSonar):
+            return self.config.harbour.scan_period
+        return self.config.seaking.sweep_time
+
+
+def describe(config: SimConfig) -> str:
+    """One line for logs: scenario, sensor, sizes and timing."""
+    if config.is_harbour:
+        g = config.harbour.geometry()
+        return (f'{config.scenario} on the harbour sonar: {g.n_bins} x {g.n_beams} cells of '
+                f'{config.harbour.cell_depth:.2f} m x {math.degrees(config.harbour.cell_width):.3f} deg, '
+                f'one scan every {config.harbour.scan_period:g} s')
+    s = config.seaking
+    return (f'{config.scenario} on SeaKing {s.frequency_khz:g} kHz: {s.n_bins} bins to {s.range_max:g} m, '
+            f'step {s.step_deg:g} deg, ping every {s.ping_period * 1e3:.1f} ms, sweep {s.sweep_time:.2f} s')

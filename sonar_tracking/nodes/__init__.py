@@ -1,0 +1,1 @@
+"""rclpy nodes of sonar_tracking: thin wrappers, adapter -> core -> adapter -> publish."""

@@ -1,0 +1,175 @@
+"""``seaking_sim``: the simulated scanning sonar (SeaKing 675/325 kHz or the harbour sonar).
+
+Publishes, per sector (DESIGN §4): ``/sonar/sector`` (32FC1 amplitudes), ``/sonar/sector_info``
+(its geometry, same header), ``/sonar/fan`` (mono8 picture, when someone listens),
+``/sonar/truth`` and ``/platform/odometry``; optionally ``/clock``.
+
+Stamps are simulation time (scenario start = ``stamp_offset``), never the wall clock, so the same
+seed gives the same messages bit for bit. ``rate`` sets the pace: 1 = real time, 0 = as fast as
+the subscribers acknowledge each sector (reliable QoS). Falling behind never skips a sector.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from nav_msgs.msg import Odometry
+from sensor_msgs.msg import Image, LaserScan, PointCloud2
+
+import msg_adapters as ma
+from msg_adapters.odometry import pose_to_odometry
+from sonar_tracking.core.config import setting
+from sonar_tracking.core.fan import PolarCanvas, to_mono8
+from sonar_tracking.core.sim import SimConfig, SimSector, Simulator, describe
+from sonar_tracking.core.sim.presets import SCENARIOS
+
+from ._params import ConfigParameters, descriptor_for
+from ._runtime import run_node
+
+__all__ = ['SimNodeConfig', 'SeaKingSimNode', 'main']
+
+
+@dataclass(frozen=True)
+class SimNodeConfig(SimConfig):
+    """Simulator settings plus how the node publishes them."""
+
+    rate: float = setting(1.0, 'pace: 1 = real time, 2 = twice as fast, 0 = as fast as subscribers take it',
+                          low=0.0, high=1e4)
+    world_frame: str = setting('world', 'frame of truth, odometry and tracks', read_only=True)
+    sensor_frame: str = setting('sonar', 'frame of the sectors (the sonar head)', read_only=True)
+    stamp_offset: float = setting(0.0, 'stamp of the scenario start', unit='s', low=0.0, high=4e9, read_only=True)
+    fan_size: int = setting(512, 'longer side of /sonar/fan', unit='px', low=16, high=4096, read_only=True)
+    fan_dynamic_range_db: float = setting(30.0, 'grey scale of /sonar/fan above the median', unit='dB',
+                                          low=1.0, high=120.0)
+    publish_clock: bool = setting(False, 'publish /clock with the simulation time (for use_sim_time)',
+                                  read_only=True)
+    shutdown_when_done: bool = setting(False, 'exit once the scenario has ended', read_only=True)
+    wait_for_subscribers: int = setting(0, 'start only once this many subscribers listen to each of /sonar/sector, '
+                                        '/sonar/sector_info and /sonar/truth', low=0, high=1000, read_only=True)
+
+
+class SeaKingSimNode(Node):
+    """Runs a :class:`Simulator` and publishes its sectors."""
+
+    #: Parameters that may change while running; the sensor and scene are fixed at start-up.
+    MUTABLE = {'rate', 'clutter_lambda', 'snr_db', 'fan_dynamic_range_db'}
+
+    def __init__(self, **kwargs) -> None:
+        super().__init__('seaking_sim', **kwargs)
+        log = self.get_logger()
+        # The scenario and sensor preset decide every other default, so they are read first.
+        scenario = self._declare_choice('scenario', 'scenario2', tuple(SCENARIOS))
+        preset = self._declare_choice('preset', SCENARIOS[scenario].sensors[0], SCENARIOS[scenario].sensors)
+        base = SimNodeConfig.for_scenario(scenario, preset)
+        self.params = ConfigParameters(self, base, on_change=self._on_change, skip=('scenario', 'preset'),
+                                       mutable=self.MUTABLE)
+        self.config: SimNodeConfig = self.params.config
+        self.sim = Simulator(self.config, np.random.default_rng(self.config.seed))
+        log.info(describe(self.config))
+
+        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        self.pub_sector = self.create_publisher(Image, '/sonar/sector', reliable)
+        self.pub_info = self.create_publisher(LaserScan, '/sonar/sector_info', reliable)
+        self.pub_fan = self.create_publisher(Image, '/sonar/fan', QoSProfile(depth=1))
+        self.pub_truth = self.create_publisher(PointCloud2, '/sonar/truth', reliable)
+        self.pub_odom = self.create_publisher(Odometry, '/platform/odometry', reliable)
+        self.pub_clock = self.create_publisher(Clock, '/clock', 10) if self.config.publish_clock else None
+
+        self.canvas = self._make_canvas()
+        self.sectors = 0
+        self._anchor()
+        self.timer = self.create_timer(0.0 if self.config.rate == 0 else 0.005, self._tick)
+
+    def _declare_choice(self, name: str, default: str, choices: tuple[str, ...]) -> str:
+        s = next(s for s in SimNodeConfig.settings() if s.name == name)
+        value = self.declare_parameter(name, default, descriptor_for(s)).value
+        if value not in choices:
+            self.get_logger().error(f'parameter {name}: {value!r} is not one of {list(choices)}; using {default!r}')
+            self.set_parameters([Parameter(name, value=default)])
+            value = default
+        return value
+
+    def _make_canvas(self) -> PolarCanvas:
+        return PolarCanvas.with_size(self.sim.sensor.coverage(), self.config.fan_size)
+
+    def _anchor(self) -> None:
+        """Tie the next sector's simulation time to now (at start and when ``rate`` changes)."""
+        self._wall0 = time.monotonic()
+        self._sim0 = self.sim.sensor.next_time
+
+    def _on_change(self, old: SimNodeConfig, new: SimNodeConfig) -> None:
+        if new.rate != old.rate:
+            self.timer.cancel()
+            self.timer = self.create_timer(0.0 if new.rate == 0 else 0.005, self._tick)
+        if new.clutter_lambda != old.clutter_lambda:
+            self.sim.set_clutter_lambda(new.clutter_lambda)
+        if new.snr_db != old.snr_db:
+            self.sim.set_snr_db(new.snr_db)
+        self.config = new
+        self._anchor()
+
+    def _tick(self) -> None:
+        if self.sectors == 0 and min(p.get_subscription_count() for p in (
+                self.pub_sector, self.pub_info, self.pub_truth)) < self.config.wait_for_subscribers:
+            self._anchor()
+            return
+        rate = self.config.rate
+        if rate == 0:
+            self._publish_next()
+            self.pub_sector.wait_for_all_acked(Duration(seconds=1.0))
+            return
+        due = self._wall0 + (self.sim.sensor.next_time - self._sim0) / rate
+        while time.monotonic() >= due:
+            if not self._publish_next():
+                return
+            due = self._wall0 + (self.sim.sensor.next_time - self._sim0) / rate
+
+    def _publish_next(self) -> bool:
+        sector = self.sim.next_sector()
+        if sector is None:
+            self.timer.cancel()
+            self.get_logger().info(f'scenario {self.config.scenario} finished after {self.sectors} sectors '
+                                   f'({self.sim.scene.duration:g} s of simulated time)')
+            if self.config.shutdown_when_done:
+                raise SystemExit(0)
+            return False
+        self._publish(sector)
+        self.sectors += 1
+        return True
+
+    def _publish(self, s: SimSector) -> None:
+        c = self.config
+        stamp_ns = int(round((c.stamp_offset + s.stamp) * 1e9))
+        self.pub_sector.publish(ma.array_to_image(s.amplitudes, '32FC1', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
+        self.pub_info.publish(ma.geometry_to_scan(s.geometry, amplitudes=s.amplitudes, stamp_ns=stamp_ns,
+                                                  frame_id=c.sensor_frame))
+        ids, states = self.sim.truth(s.stamp)
+        truth = np.zeros(len(ids), ma.TRUTH_DTYPE)
+        truth['target_id'] = ids
+        for i, name in enumerate(('x', 'y', 'vx', 'vy')):
+            truth[name] = states[:, i]
+        self.pub_truth.publish(ma.array_to_cloud(truth, stamp_ns=stamp_ns, frame_id=c.world_frame))
+        _, _, _, vx, vy = self.sim.scene.platform_pose(s.stamp)
+        self.pub_odom.publish(pose_to_odometry(*s.pose, vx, vy, stamp_ns=stamp_ns, frame_id=c.world_frame,
+                                               child_frame_id=c.sensor_frame))
+        self.canvas.paint(s.amplitudes, s.geometry)
+        if self.pub_fan.get_subscription_count() > 0:
+            fan = to_mono8(self.canvas.image, c.fan_dynamic_range_db)
+            self.pub_fan.publish(ma.array_to_image(fan, 'mono8', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
+        if self.pub_clock is not None:
+            self.pub_clock.publish(Clock(clock=ma.ns_to_stamp(stamp_ns)))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``ros2 run sonar_tracking seaking_sim``."""
+    return run_node(SeaKingSimNode, args)
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())
