@@ -124,3 +124,32 @@ def test_runtime_parameter_changes_refused_with_reason_or_applied(ros, launch):
     ros.wait(lambda: len(got) >= 2, 20.0, 'sectors after the parameter changes')
     ros.node.destroy_subscription(sub)
     assert np.isfinite(ma.image_to_array(got[-1])).all()
+
+
+def test_fan_image_shows_the_target_where_truth_says(ros, launch):
+    """The node's /sonar/fan: the brightest spot after a sweep sits on the truth (within half a metre)."""
+    from sensor_msgs.msg import Image, LaserScan, PointCloud2
+
+    from sonar_tracking.core.fan import PolarCanvas
+    from sonar_tracking.core.sim import SeaKingSonar, SimConfig
+    fans, truths = [], []
+    subs = [ros.node.create_subscription(Image, '/sonar/fan', fans.append, KEEP_ALL),
+            ros.node.create_subscription(PointCloud2, '/sonar/truth', truths.append, KEEP_ALL),
+            ros.node.create_subscription(Image, '/sonar/sector', lambda m: None, KEEP_ALL),
+            ros.node.create_subscription(LaserScan, '/sonar/sector_info', lambda m: None, KEEP_ALL)]
+    proc = launch('seaking_sim', 'scenario:=fls14', 'snr_db:=40.0', 'duration:=5.2', 'rate:=0.0', 'fan_size:=600',
+                  'wait_for_subscribers:=1', 'shutdown_when_done:=true')
+    ros.wait(lambda: proc.poll() is not None, 60.0, 'the simulator to finish')
+    time.sleep(0.5)
+    for s in subs:
+        ros.node.destroy_subscription(s)
+    assert fans, proc.stderr.read()
+    # The canvas the node paints into, rebuilt from the same configuration.
+    cfg = SimConfig.for_scenario('fls14')
+    canvas = PolarCanvas.with_size(SeaKingSonar(cfg.seaking, cfg.sector_size).coverage(), 600)
+    img = ma.image_to_array(fans[-1])
+    assert img.shape == canvas.image.shape and img.dtype == np.uint8
+    row, col = np.unravel_index(np.argmax(img), img.shape)
+    x, y = canvas.point_of(row, col)
+    truth = ma.cloud_to_array(truths[-1])[0]
+    assert np.hypot(x - truth['x'], y - truth['y']) < 0.5
