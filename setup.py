@@ -9,6 +9,7 @@ PACKAGE = 'sonar_tracking'
 # which is where `ros2 run sonar_tracking NAME` looks.
 CONSOLE_SCRIPTS = [
     'seaking_sim = sonar_tracking.nodes.seaking_sim:main',
+    'active_detector = sonar_tracking.nodes.active_detector:main',
     'sonar_eval = sonar_tracking.tools.sonar_eval:main',
 ]
 

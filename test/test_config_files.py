@@ -1,4 +1,4 @@
-"""Every parameter file in config/ names real parameters with valid values."""
+"""Every parameter file in config/ names real parameters of its node, with valid values."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,20 +6,34 @@ from pathlib import Path
 import pytest
 import yaml
 
+from sonar_tracking.nodes.active_detector import DetectorNodeConfig
 from sonar_tracking.nodes.seaking_sim import SimNodeConfig
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
-NODES = {'seaking_sim': SimNodeConfig}
 
 
-@pytest.mark.parametrize('path', sorted(CONFIG.glob('*.yaml')), ids=lambda p: p.name)
+def sim_config(params):
+    return SimNodeConfig.for_scenario(params.pop('scenario'), params.pop('preset', ''), **params)
+
+
+#: node name -> (config class, how to build it from a params section)
+NODES = {
+    'seaking_sim': (SimNodeConfig, sim_config),
+    'active_detector': (DetectorNodeConfig, DetectorNodeConfig.from_flat),
+}
+
+
+@pytest.mark.parametrize('path', sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'desired_density.yaml'),
+                         ids=lambda p: p.name)
 def test_parameter_file_is_valid(path):
     data = yaml.safe_load(path.read_text())
     assert isinstance(data, dict) and data, f'{path.name} is empty'
     for node, section in data.items():
+        assert node in NODES, f'{path.name}: unknown node {node}'
+        cls, build = NODES[node]
         params = dict(section['ros__parameters'])
-        cls = NODES[node]
         known = {s.name for s in cls.settings()}
         assert not set(params) - known, f'unknown parameters {sorted(set(params) - known)}'
-        config = cls.for_scenario(params.pop('scenario'), params.pop('preset', ''), **params)
-        assert config.flat()['seed'] == params.get('seed', 0)
+        flat = build(dict(params)).flat()
+        for name, value in params.items():
+            assert flat[name] == (tuple(value) if isinstance(value, list) else value), name

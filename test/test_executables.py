@@ -58,13 +58,15 @@ def test_tool_answers_help(installed, name):
 @pytest.mark.ros
 @pytest.mark.parametrize('name', sorted(n for n, m in SCRIPTS.items() if m.startswith('sonar_tracking.nodes.')))
 def test_node_starts_and_stops_on_sigint(installed, name, graph_node):
-    proc = subprocess.Popen(sourced(str(installed / name)), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, start_new_session=True)
+    # A name of its own: the graph may still list nodes of earlier tests' processes.
+    probe = f'{name}_exe_{os.getpid()}'
+    proc = subprocess.Popen(sourced(f'{installed / name} --ros-args -r __node:={probe}'), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
         deadline = time.monotonic() + 30.0
         while time.monotonic() < deadline:
             assert proc.poll() is None, f'{name} exited early: {proc.communicate()[1]}'
-            if name in [n for n, _ in graph_node.get_node_names_and_namespaces()]:
+            if probe in [n for n, _ in graph_node.get_node_names_and_namespaces()]:
                 break
             time.sleep(0.2)
         else:

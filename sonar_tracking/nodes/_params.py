@@ -55,12 +55,16 @@ class ConfigParameters:
     """Declares ``base``'s settings on ``node`` and keeps :attr:`config` in step with the parameters."""
 
     def __init__(self, node: Node, base: Config, on_change: Callable[[Config, Config], None] | None = None,
-                 skip: tuple[str, ...] = (), mutable: set[str] | None = None) -> None:
+                 skip: tuple[str, ...] = (), mutable: set[str] | None = None,
+                 check: Callable[[Config], None] | None = None) -> None:
         """``skip``: settings the node declared itself already (read first to choose ``base``).
         ``mutable``: the settings that may change while running (default: those not ``read_only``).
+        ``check``: a further test of a whole config (raising ConfigError), for rules that need
+        more than the config itself (a table file that must exist, say).
         """
         self.node = node
         self.on_change = on_change
+        self.check = check
         self.settings = {s.name: s for s in type(base).settings()}
         self.read_only = {n for n, s in self.settings.items() if (n not in mutable if mutable is not None
                                                                    else s.read_only)}
@@ -88,6 +92,8 @@ class ConfigParameters:
             values[name] = value
         try:
             self.config = type(base).from_flat(values, base=base)
+            if check is not None:
+                check(self.config)
         except ConfigError as exc:
             log.error(f'parameters are inconsistent ({exc}); using the defaults')
             node.set_parameters([Parameter(n, value=_ros_value(v)) for n, v in defaults.items() if n not in skip])
@@ -105,6 +111,8 @@ class ConfigParameters:
                     f'{name} can only be set at start-up: restart the node with -p {name}:={value}'))
         try:
             new = type(self.config).from_flat(changes, base=self.config)
+            if self.check is not None:
+                self.check(new)
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         old, self.config = self.config, new

@@ -131,14 +131,26 @@ class ActiveDetector:
         t, e = config.threshold, config.esc
         self.esc = ExtremumSeekingController(self.desired_density, t.initial, t.minimum, t.maximum,
                                              e.dither_amplitude, e.dither_decay, e.gain)
-        self.enabled = e.enabled
+        self._enabled = e.enabled
         self.scans = 0
         self.last_density = math.nan
 
     @property
     def threshold(self) -> float:
-        """Threshold for the next scan."""
-        return self.esc.threshold if self.enabled else self.config.threshold.initial
+        """Threshold for the next scan (frozen while ESC is off)."""
+        return self.esc.threshold
+
+    @property
+    def enabled(self) -> bool:
+        """Whether ESC adapts the threshold; switching off freezes it where it is."""
+        return self._enabled
+
+    @enabled.setter
+    def enabled(self, on: bool) -> None:
+        if on and not self._enabled:
+            # Resume from the frozen threshold, without the dither's jump.
+            self.esc.state.integrator = self.esc.state.threshold
+        self._enabled = bool(on)
 
     def reset(self) -> None:
         """Back to tau_0 and scan 0."""

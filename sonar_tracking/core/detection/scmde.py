@@ -41,6 +41,17 @@ class PolarWindow:
     def area(self) -> float:
         return 0.5 * (self.b_max - self.b_min) * (self.r_max ** 2 - self.r_min ** 2)
 
+    def clearance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """A lower bound of each point's distance to the window border (0 outside or undecided)."""
+        if self.b_max - self.b_min >= math.pi:
+            return np.zeros(np.shape(x))
+        r = np.hypot(x, y)
+        off = np.arctan2(y, x) - self.b_min
+        off = np.remainder(off + math.pi, 2 * math.pi) - math.pi
+        span = self.b_max - self.b_min
+        to_sides = r * np.minimum(np.sin(np.clip(off, 0.0, math.pi / 2)), np.sin(np.clip(span - off, 0.0, math.pi / 2)))
+        return np.clip(np.minimum(np.minimum(r - self.r_min, self.r_max - r), to_sides), 0.0, None)
+
     def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether sensor-frame points lie in the window."""
         r = np.hypot(x, y)
@@ -80,9 +91,12 @@ def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None)
     radius = dist[:, n]
     area = math.pi * radius ** 2
     if window is not None:
-        sx = pts[:, 0:1] + radius[:, None] * _DISC[None, :, 0]
-        sy = pts[:, 1:2] + radius[:, None] * _DISC[None, :, 1]
-        inside = window.contains(sx, sy).mean(axis=1)
-        area = area * np.maximum(inside, 1.0 / len(_DISC))
+        # Only discs that may cross the border need the sunflower test.
+        near = np.nonzero(radius > window.clearance(pts[:, 0], pts[:, 1]))[0]
+        if len(near):
+            sx = pts[near, 0:1] + radius[near, None] * _DISC[None, :, 0]
+            sy = pts[near, 1:2] + radius[near, None] * _DISC[None, :, 1]
+            inside = window.contains(sx, sy).mean(axis=1)
+            area[near] *= np.maximum(inside, 1.0 / len(_DISC))
     # Coincident points would give a zero area; a floor keeps the estimate finite.
     return (n - 1) / np.maximum(area, 1e-12)

@@ -65,3 +65,22 @@ def test_unbiased_conversion_removes_the_bias_and_gives_the_conditional_mse():
     err = z[0] - np.stack([rt * np.cos(bt), rt * np.sin(bt)], axis=1)
     mse = err.T @ err / n
     assert cov[0] == pytest.approx(mse, rel=0.02, abs=50.0)
+
+
+def test_best_track_density_is_local():
+    """Scenario 2: most clutter comes from the lam 0.8 region, so near a track in the lam 1.6 region
+    ESC sees far less clutter than the sector mean."""
+    from sonar_tracking.core.detection import ActiveDetector, DetectorConfig
+    from sonar_tracking.core.sim import SimConfig, Simulator
+    sim = Simulator(SimConfig.for_scenario('scenario2'), np.random.default_rng(4))
+    y50 = sim.truth(50.0)[1][0, 1]
+    cfg = DetectorConfig.from_flat({'esc.enabled': False, 'esc.density_source': 'best_track', 'esc.local_count': 10})
+    local, sector = ActiveDetector(cfg), ActiveDetector(DetectorConfig.from_flat({'esc.enabled': False}))
+    ratios = []
+    for _ in range(20):
+        s = sim.next_sector()
+        focus = (500.0, y50 - 330.0)          # inside the light-clutter (lam 1.6) region
+        a = local.process(s.amplitudes, s.geometry, s.pose, focus).mean_density
+        b = sector.process(s.amplitudes, s.geometry, s.pose).mean_density
+        ratios.append(a / b)
+    assert np.median(ratios) < 0.3
