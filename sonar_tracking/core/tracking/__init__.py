@@ -1,0 +1,30 @@
+"""IMM-IPDA multi-target tracking (ESC paper §2.4): small modules, one role each.
+
+* :mod:`.motion` motion models CV and CTR (eqs. 3-4), :mod:`.noise` process noise,
+* :mod:`.markov` mode transition matrix (eq. 21) and existence chain (eqs. 24, 40),
+* :mod:`.gaussian` mixture moment matching, :mod:`.imm` interaction and combination
+  (eqs. 17-20, 41-42), :mod:`.kalman` prediction (eqs. 22-23),
+* :mod:`.gating` gates and likelihoods (eqs. 25-28), :mod:`.ipda` the update (eqs. 28-40),
+* :mod:`.measurements` input checks, :mod:`.management` initiation, confirmation, termination,
+* :mod:`.config` settings, :mod:`.tracker` the tracker that wires them together.
+"""
+from .config import MODE_NAMES, TrackerConfig
+from .errors import TrackingError, TrackingInputError
+from .gating import candidate_pairs, gate_probability, gate_threshold, innovations
+from .gaussian import moment_match
+from .imm import combine, interaction
+from .ipda import ipda_update
+from .kalman import predict
+from .management import initial_covariance
+from .markov import mode_transition_matrix, predict_existence, update_existence
+from .measurements import Rejection, check_measurements
+from .motion import ConstantTurn, ConstantVelocity, MotionModel, position_matrix
+from .noise import white_noise_acceleration
+from .tracker import ImmIpdaTracker, Mode, StepReport, modes_from_config
+
+__all__ = ['MODE_NAMES', 'TrackerConfig', 'TrackingError', 'TrackingInputError', 'candidate_pairs',
+           'gate_probability', 'gate_threshold', 'innovations', 'moment_match', 'combine', 'interaction',
+           'ipda_update', 'predict', 'initial_covariance', 'mode_transition_matrix', 'predict_existence',
+           'update_existence', 'Rejection', 'check_measurements', 'ConstantTurn', 'ConstantVelocity',
+           'MotionModel', 'position_matrix', 'white_noise_acceleration', 'ImmIpdaTracker', 'Mode',
+           'StepReport', 'modes_from_config']

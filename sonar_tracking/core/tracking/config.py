@@ -1,0 +1,135 @@
+"""Settings of the IMM-IPDA tracker: one frozen :class:`~sonar_tracking.core.config.Config`.
+
+The paper (ESC, §2.4 and §5) fixes the mode transition matrix (eq. 21, ``p_stay = 0.98``), the
+modes (CV and CTR left and right) and the turn rate of Scenario 2 (Table 2, 3 deg/s). It does not
+give the process noise, ``P_D``, the gate, the existence chain or the thresholds; the defaults
+here are ours and say so in their descriptions. ``config/imm_ipda.yaml`` holds the values for
+the paper's harbour scenarios.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from ..config import Config, ConfigError, setting
+
+__all__ = ['ImmConfig', 'DetectionConfig', 'ClutterConfig', 'ExistenceConfig', 'InitConfig', 'TrackConfig',
+           'TrackerConfig', 'MODE_NAMES']
+
+#: Mode names the tracker knows; ``TRACK_DTYPE`` has one probability field per name.
+MODE_NAMES = ('cv', 'ccw', 'cw')
+
+
+@dataclass(frozen=True)
+class ImmConfig(Config):
+    """Motion modes (eqs. 3-4), their process noise and the mode transition matrix (eq. 21)."""
+
+    models: str = setting('cv,ccw,cw', 'IMM modes, comma-separated from cv (eq. 3), ccw (eq. 4, +Omega), '
+                          'cw (eq. 4, -Omega); "cv" alone is a single-model IPDA')
+    turn_rate_ccw_deg: float = setting(3.0, 'turn rate of the ccw mode (Table 2: 3 deg/s)', unit='deg/s',
+                                       low=0.0, high=180.0, low_open=True)
+    turn_rate_cw_deg: float = setting(3.0, 'turn rate magnitude of the cw mode (Table 2: 3 deg/s)', unit='deg/s',
+                                      low=0.0, high=180.0, low_open=True)
+    mode_stay_probability: float = setting(0.98, 'diagonal of the mode transition matrix, eq. (21)',
+                                           low=0.0, high=1.0, low_open=True)
+    noise_cv: float = setting(0.01, 'acceleration noise PSD q of the cv mode (not in the paper)',
+                              unit='m^2/s^3', low=0.0, high=1e6)
+    noise_ctr: float = setting(0.01, 'acceleration noise PSD q of the ccw and cw modes (not in the paper)',
+                               unit='m^2/s^3', low=0.0, high=1e6)
+
+    @property
+    def mode_names(self) -> tuple[str, ...]:
+        """The modes in order, e.g. ``('cv', 'ccw', 'cw')``."""
+        return tuple(m.strip() for m in self.models.split(','))
+
+    def validate(self) -> None:
+        names = self.mode_names
+        bad = [m for m in names if m not in MODE_NAMES]
+        if bad or not names:
+            raise ConfigError(f'models = {self.models!r}: unknown mode(s) {bad}; use a comma-separated '
+                              f'list of {list(MODE_NAMES)}')
+        if len(set(names)) != len(names):
+            raise ConfigError(f'models = {self.models!r} names a mode twice')
+        if len(names) > 1 and self.mode_stay_probability == 1.0:
+            raise ConfigError('mode_stay_probability = 1 freezes the modes; use < 1 with several models')
+
+
+@dataclass(frozen=True)
+class DetectionConfig(Config):
+    """Sensor detection model (eqs. 28, 32-33) and the validation gate (eq. 25)."""
+
+    probability: float = setting(0.9, 'target detection probability P_D (eqs. 32-33)', low=0.0, high=1.0,
+                                 low_open=True)
+    gate_probability: float = setting(0.99, 'gate probability P_G; the gate size gamma_G of eq. (25) is its '
+                                      'chi-square(2) quantile; 1 = no gate', low=0.5, high=1.0)
+    sigma: float = setting(5.0, 'std of x and y of a detection that carries no covariance', unit='m',
+                           low=0.0, high=1e6, low_open=True)
+
+
+@dataclass(frozen=True)
+class ClutterConfig(Config):
+    """Clutter measurement density rho_{k,i} of eqs. (32)-(33)."""
+
+    source: str = setting('detection', 'detection = each detection\'s clutter_density (SCMDE), '
+                          'constant = clutter.density for all', choices=('detection', 'constant'))
+    density: float = setting(7.52e-5, 'constant clutter density (Scenario 2 rho_D: 7.52e-5)', unit='1/m^2',
+                             low=0.0, high=1e6, low_open=True)
+
+
+@dataclass(frozen=True)
+class ExistenceConfig(Config):
+    """Target existence: Markov chain one (eq. 24), initial value and track management thresholds."""
+
+    survival: float = setting(0.98, 'P(chi_k | chi_{k-1}) per scan, eq. (24)', low=0.0, high=1.0, low_open=True)
+    birth: float = setting(0.0, 'P(chi_k | not chi_{k-1}) per scan, eq. (24)', low=0.0, high=1.0)
+    initial: float = setting(0.02, 'existence probability of a new track (not in the paper)', low=0.0, high=1.0,
+                             low_open=True, high_open=True)
+    confirm: float = setting(0.98, 'T_c: a track is confirmed once its existence exceeds this (not in the paper)', low=0.0,
+                             high=1.0, low_open=True, high_open=True)
+    terminate: float = setting(0.01, 'a track is terminated when its existence falls below this (not in the paper)',
+                               low=0.0, high=1.0, high_open=True)
+
+    def validate(self) -> None:
+        if not self.terminate < self.initial:
+            raise ConfigError(f'existence.terminate = {self.terminate} must be < existence.initial = {self.initial}')
+        if not self.terminate < self.confirm:
+            raise ConfigError(f'existence.terminate = {self.terminate} must be < existence.confirm = {self.confirm}')
+
+
+@dataclass(frozen=True)
+class InitConfig(Config):
+    """One-point track initiation: position from the measurement, velocity from a prior."""
+
+    speed_max: float = setting(15.0, 'largest target speed; each velocity component of a new track has '
+                               'mean 0 and variance speed_max^2 / 3', unit='m/s', low=0.0, high=1e4, low_open=True)
+
+
+@dataclass(frozen=True)
+class TrackConfig(Config):
+    """Track bookkeeping beyond the paper: duplicates, a cap on tracks, long gaps."""
+
+    merge_threshold: float = setting(9.49, 'a track whose state lies within this squared Mahalanobis distance '
+                                     '(summed covariances, 4 dof) of a confirmed track with higher existence '
+                                     'is removed as a duplicate; 0 = never', low=0.0, high=1e6)
+    max_position_std: float = setting(30.0, 'a track whose position std (largest axis) exceeds this is terminated: '
+                                      'it no longer follows anything', unit='m', low=0.0, high=1e9, low_open=True)
+    max_tracks: int = setting(5000, 'most tracks kept; beyond, the least likely tentative tracks are dropped',
+                              low=1, high=10_000_000)
+    max_gap: float = setting(60.0, 'a scan more than this after the previous one restarts the tracker',
+                             unit='s', low=0.0, high=1e9, low_open=True)
+
+
+@dataclass(frozen=True)
+class TrackerConfig(Config):
+    """Every setting of :class:`~sonar_tracking.core.tracking.tracker.ImmIpdaTracker`."""
+
+    imm: ImmConfig = ImmConfig()
+    detection: DetectionConfig = DetectionConfig()
+    clutter: ClutterConfig = ClutterConfig()
+    existence: ExistenceConfig = ExistenceConfig()
+    init: InitConfig = InitConfig()
+    track: TrackConfig = TrackConfig()
+
+    def turn_rates(self) -> dict[str, float]:
+        """Signed turn rate [rad/s] of each CTR mode: ccw positive, cw negative (REP-103)."""
+        return {'ccw': math.radians(self.imm.turn_rate_ccw_deg), 'cw': -math.radians(self.imm.turn_rate_cw_deg)}

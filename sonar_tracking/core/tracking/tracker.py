@@ -1,0 +1,354 @@
+"""The IMM-IPDA multi-target tracker (ESC paper §2.4): wires the parts together, scan by scan.
+
+Each track is an independent IMM-IPDA (Musicki & Suvorova's IMM-IPDA as summarised by the
+paper): interaction (eqs. 17-20), prediction (22-23) and existence prediction (24), gating
+(25-27), likelihoods (28-29), update (30-40) and combination (41-42); track management as in
+:mod:`~sonar_tracking.core.tracking.management`. Everything is computed for all tracks,
+modes and validated pairs at once with numpy; nothing loops over tracks or measurements.
+
+Input handling of :meth:`ImmIpdaTracker.step`:
+
+* measurement rows with a non-finite position, a covariance that is not finite, symmetric and
+  positive definite, or a clutter density that is not finite and positive are dropped; the
+  rest of the scan is used. :attr:`ImmIpdaTracker.report` lists the dropped rows with reasons;
+* a scan with the same stamp as the previous one is dropped whole (``report.duplicate_stamp``)
+  and the previous output is returned again;
+* a scan stamped before the previous one (a replayed bag looping) or more than
+  ``track.max_gap`` after it resets the tracker: every track is removed, the new scan is
+  processed as a first scan and ``report.reset`` says why. Track ids keep counting, so an id is
+  never reused within the tracker's life (ids are ``uint32``; after 2^32 starts they wrap,
+  skipping ids still in use).
+
+The output never holds a NaN: a track whose estimate stops being finite is removed
+(``report.dropped_numerical``).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..records import TRACK_DTYPE
+from .config import MODE_NAMES, TrackerConfig
+from .errors import TrackingInputError
+from .gating import Innovations, candidate_pairs, gate_boxes, gate_threshold, innovations
+from .imm import combine, interaction
+from .ipda import ipda_update
+from .kalman import predict, transition_operators
+from .management import (duplicate_tracks, excess_tracks, initial_covariance, one_point_initiation,
+                         unused_measurements)
+from .markov import mode_transition_matrix, predict_existence
+from .measurements import Rejection, as_measurements, check_measurements
+from .motion import ConstantTurn, ConstantVelocity, MotionModel
+from .noise import white_noise_acceleration
+
+__all__ = ['Mode', 'modes_from_config', 'StepReport', 'ImmIpdaTracker']
+
+_ID_SPACE = 2 ** 32
+
+
+@dataclass(frozen=True)
+class Mode:
+    """One IMM mode: a motion model and the PSD ``q`` of its white-noise acceleration."""
+
+    name: str
+    model: MotionModel
+    noise: float
+
+
+def modes_from_config(config: TrackerConfig) -> tuple[Mode, ...]:
+    """The modes ``config.imm.models`` names, in that order (cv: eq. 3, ccw/cw: eq. 4 with +/-Omega)."""
+    rates = config.turn_rates()
+    out = []
+    for name in config.imm.mode_names:
+        if name == 'cv':
+            out.append(Mode('cv', ConstantVelocity(2), config.imm.noise_cv))
+        else:
+            out.append(Mode(name, ConstantTurn(rates[name], name=name), config.imm.noise_ctr))
+    return tuple(out)
+
+
+@dataclass
+class StepReport:
+    """What happened in the last :meth:`ImmIpdaTracker.step`, for logs and diagnostics."""
+
+    t: float = math.nan
+    n_measurements: int = 0
+    rejected: list[Rejection] = field(default_factory=list)
+    duplicate_stamp: bool = False
+    reset: str = ''
+    n_pairs: int = 0
+    initiated: int = 0
+    confirmed: int = 0
+    terminated: int = 0
+    merged: int = 0
+    capped: int = 0
+    dropped_numerical: int = 0
+    n_tracks: int = 0
+    n_confirmed: int = 0
+
+
+class ImmIpdaTracker:
+    """Multi-target IMM-IPDA tracker in the world frame.
+
+    Parameters
+    ----------
+    config : the settings (:class:`~sonar_tracking.core.tracking.config.TrackerConfig`).
+    modes : optional explicit modes, replacing those ``config.imm`` describes (their names must
+        be among ``cv``, ``ccw``, ``cw``; probabilities of modes with the same name are added in
+        the output). All modes must share one state dimension.
+    """
+
+    def __init__(self, config: TrackerConfig | None = None, modes: tuple[Mode, ...] | None = None) -> None:
+        self._next_id = 1
+        self._wrapped = False
+        self.report = StepReport()
+        self.configure(config or TrackerConfig(), modes)
+
+    # ---------------------------------------------------------------- configuration
+    def configure(self, config: TrackerConfig, modes: tuple[Mode, ...] | None = None) -> bool:
+        """Apply new settings. Tracks are kept when the modes keep their number, else reset.
+
+        Returns True when the tracks were reset.
+        """
+        modes = tuple(modes) if modes is not None else modes_from_config(config)
+        if not modes:
+            raise TrackingInputError('the tracker needs at least one mode')
+        dims = {m.model.state_dim for m in modes}
+        if len(dims) != 1:
+            raise TrackingInputError(f'all modes must share one state dimension, got {sorted(dims)}')
+        unknown = [m.name for m in modes if m.name not in MODE_NAMES]
+        if unknown:
+            raise TrackingInputError(f'mode names {unknown} are not among {list(MODE_NAMES)}')
+        old_m = len(getattr(self, 'modes', ()))
+        self.config = config
+        self.modes = modes
+        self.n = dims.pop()
+        self.d = self.n // 2
+        self.pi = mode_transition_matrix(len(modes), config.imm.mode_stay_probability)
+        self.gamma = gate_threshold(config.detection.gate_probability, self.d)
+        self._fq_cache: tuple | None = None
+        self._default_R = config.detection.sigma ** 2 * np.eye(self.d)
+        self._mode_field = [MODE_NAMES.index(m.name) for m in modes]
+        reset = old_m != len(modes)
+        if reset or not hasattr(self, '_x'):
+            self.reset()
+        return reset
+
+    def reset(self) -> None:
+        """Remove every track and forget the time; track ids keep counting."""
+        m, n = len(self.modes), self.n
+        # Component-major, tracks last (see the package docstring).
+        self._ids = np.zeros(0, dtype=np.int64)
+        self._x = np.zeros((n, m, 0))
+        self._P = np.zeros((n, n, m, 0))
+        self._mu = np.zeros((m, 0))
+        self._exist = np.zeros(0)
+        self._confirmed = np.zeros(0, dtype=bool)
+        self._xc = np.zeros((n, 0))
+        self._Pc = np.zeros((n, n, 0))
+        self._t: float | None = None
+        self._output = np.zeros(0, TRACK_DTYPE)
+
+    def initial_covariance(self, R: np.ndarray | None = None) -> np.ndarray:
+        """``P_{0|0}`` of a track started from a measurement with covariance ``R`` (eqs. 47-48)."""
+        return initial_covariance(self._default_R if R is None else R, self.config.init.speed_max)
+
+    @property
+    def time(self) -> float | None:
+        """Stamp of the last processed scan, None before the first (or after a reset)."""
+        return self._t
+
+    @property
+    def n_tracks(self) -> int:
+        return len(self._ids)
+
+    def tracks(self) -> np.ndarray:
+        """The current tracks as a ``TRACK_DTYPE`` array (a copy of the last output)."""
+        return self._output.copy()
+
+    def mode_states(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Copies of the per-mode estimates, tracks first: ``x (T, M, n)``, ``P (T, M, n, n)``, ``mu (T, M)``."""
+        return (np.moveaxis(self._x, -1, 0).swapaxes(1, 2).copy(),
+                np.moveaxis(self._P, (2, 3), (1, 0)).copy(), self._mu.T.copy())
+
+    def estimates(self) -> tuple[np.ndarray, np.ndarray]:
+        """Copies of the combined estimates (eqs. 41-42), tracks first: ``x (T, n)``, ``P (T, n, n)``."""
+        return self._xc.T.copy(), np.moveaxis(self._Pc, -1, 0).copy()
+
+    # ---------------------------------------------------------------- one scan
+    def step(self, t: float, z, R=None, rho=None) -> np.ndarray:
+        """Process one scan and return all tracks (tentative and confirmed) as ``TRACK_DTYPE``.
+
+        Parameters
+        ----------
+        t : scan time [s].
+        z : ``(N, 2)`` world-frame positions of the detections.
+        R : ``(N, 2, 2)`` their covariances; None uses ``detection.sigma^2 I``.
+        rho : ``(N,)`` clutter density at each detection (SCMDE) [1/m^2], used when
+            ``clutter.source`` is ``detection``; None, or source ``constant``, uses
+            ``clutter.density``.
+        """
+        cfg = self.config
+        t = float(t)
+        if not math.isfinite(t):
+            raise TrackingInputError(f'scan time {t} is not finite')
+        if cfg.clutter.source == 'constant':
+            rho = None
+        z, R, rho = as_measurements(z, R, rho, default_R=self._default_R, default_rho=cfg.clutter.density)
+        if z.shape[1] != self.d:
+            raise TrackingInputError(f'z has {z.shape[1]} columns; the modes track {self.d}-D positions')
+        rep = self.report = StepReport(t=t, n_measurements=len(z))
+        if self._t is not None:
+            dt = t - self._t
+            if dt == 0.0:
+                rep.duplicate_stamp = True
+                self._fill_counts(rep)
+                return self._output.copy()
+            if dt < 0.0:
+                rep.reset = f'time went backwards by {-dt:.6g} s (a replayed bag looping?): all tracks removed'
+            elif dt > cfg.track.max_gap:
+                rep.reset = f'{dt:.6g} s since the previous scan exceeds track.max_gap = {cfg.track.max_gap:g} s'
+            if rep.reset:
+                self.reset()
+        keep, rep.rejected = check_measurements(z, R, rho)
+        if not keep.all():
+            z, R, rho = z[keep], R[keep], rho[keep]
+
+        pair_track = pair_meas = np.zeros(0, dtype=np.intp)
+        if len(self._ids):
+            pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho)
+            rep.n_pairs = len(pair_track)
+            self._manage(rep)
+            alive = self._alive
+            # Pairs of surviving tracks, re-indexed (used to find measurements of confirmed tracks).
+            new_index = np.cumsum(alive) - 1
+            sel = alive[pair_track]
+            pair_track, pair_meas = new_index[pair_track[sel]], pair_meas[sel]
+        unused = unused_measurements(len(z), pair_track, pair_meas, self._confirmed)
+        self._initiate(z[unused], R[unused])
+        rep.initiated = int(unused.sum())
+        self._t = t
+        self._output = self._records()
+        self._fill_counts(rep)
+        return self._output.copy()
+
+    # ---------------------------------------------------------------- internals
+    def _transitions(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if self._fq_cache is None or self._fq_cache[0] != dt:
+            F = np.stack([m.model.transition(dt) for m in self.modes])
+            Q = np.stack([white_noise_acceleration(dt, m.noise, self.d) for m in self.modes])
+            self._fq_cache = (dt, F, Q, transition_operators(F))
+        return self._fq_cache[1:]
+
+    def _predict_update(self, dt: float, z: np.ndarray, R: np.ndarray, rho: np.ndarray
+                        ) -> tuple[np.ndarray, np.ndarray]:
+        cfg, d = self.config, self.d
+        meas_side = np.concatenate((z.T, R.reshape(len(z), d * d).T))                # (d + d^2, N)
+        F, Q, ops = self._transitions(dt)
+        mu_pred, x0, P0 = interaction(self._mu, self._x, self._P, self.pi)           # eqs. (17)-(20)
+        x_pred, P_pred = predict(x0, P0, F, Q, ops)                                   # eqs. (22)-(23)
+        e_pred = predict_existence(self._exist, cfg.existence.survival, cfg.existence.birth)  # eq. (24)
+
+        # One contiguous gather per side: [H x, H P H^T] per track and [z, R] per measurement.
+        track_side = np.concatenate((x_pred[:d], P_pred[:d, :d].reshape(d * d, *x_pred.shape[1:])))
+        diag = np.arange(d)
+        r_max = R[:, diag, diag].max(axis=0) if len(z) else np.zeros(d)
+        lo, hi = gate_boxes(track_side[:d], track_side[d + diag * (d + 1)], r_max, self.gamma)
+        pt, pm = candidate_pairs(lo, hi, z)
+        tg = np.take(track_side, pt, axis=-1)
+        mg = np.take(meas_side, pm, axis=-1)
+        innov = innovations(mg[:d], mg[d:].reshape(d, d, -1), tg[:d],
+                            tg[d:].reshape(d, d, *tg.shape[1:]))                          # eqs. (25)-(26)
+        in_gate = innov.d2 < self.gamma
+        valid = in_gate.any(axis=0)
+        if not valid.all():
+            pt, pm, in_gate, innov = pt[valid], pm[valid], in_gate[:, valid], innov.select(valid)
+        res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho[pm],
+                          cfg.detection.probability, cfg.detection.gate_probability)  # eqs. (28)-(40)
+        self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
+        self._xc, self._Pc = combine(res.mu, res.x, res.P)                           # eqs. (41)-(42)
+        return pt, pm
+
+    def _manage(self, rep: StepReport) -> None:
+        cfg = self.config.existence
+        xc, Pc = self._xc, self._Pc
+        pxx, pxy, pyy = Pc[0, 0], Pc[0, 1], Pc[1, 1]
+        major = 0.5 * (pxx + pyy) + np.sqrt(0.25 * (pxx - pyy) ** 2 + pxy ** 2)    # largest eigenvalue
+        # Every failure of finiteness shows in the position variance or the state sum.
+        finite = np.isfinite(major + xc.sum(axis=0) + Pc.sum(axis=(0, 1)) + self._exist) \
+            & (np.diagonal(Pc).min(axis=-1) > 0)
+        rep.dropped_numerical = int(len(finite) - np.count_nonzero(finite))
+        newly = finite & ~self._confirmed & (self._exist > cfg.confirm)
+        self._confirmed = self._confirmed | newly
+        rep.confirmed = int(np.count_nonzero(newly))
+        alive = finite & (self._exist >= cfg.terminate) & (major <= self.config.track.max_position_std ** 2)
+        rep.terminated = int(np.count_nonzero(finite & ~alive))
+        if self.config.track.merge_threshold > 0 and self._confirmed.any():
+            idx = np.flatnonzero(alive)
+            dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
+                                   self._ids[idx], self.config.track.merge_threshold)
+            alive[idx[dup]] = False
+            rep.merged = int(np.count_nonzero(dup))
+        if np.count_nonzero(alive) > self.config.track.max_tracks:
+            idx = np.flatnonzero(alive)
+            cap = excess_tracks(self._exist[idx], self._confirmed[idx], self.config.track.max_tracks)
+            alive[idx[cap]] = False
+            rep.capped = int(np.count_nonzero(cap))
+        self._alive = alive
+        if not alive.all():
+            self._ids, self._exist, self._confirmed = self._ids[alive], self._exist[alive], self._confirmed[alive]
+            self._x, self._P, self._mu = self._x[..., alive], self._P[..., alive], self._mu[:, alive]
+            self._xc, self._Pc = self._xc[:, alive], self._Pc[..., alive]
+
+    def _initiate(self, z: np.ndarray, R: np.ndarray) -> None:
+        k = len(z)
+        if k == 0:
+            return
+        m = len(self.modes)
+        x, P = one_point_initiation(z, R, self.config.init.speed_max, m)
+        self._ids = np.concatenate((self._ids, self._new_ids(k)))
+        self._x = np.concatenate((self._x, x), axis=-1)
+        self._P = np.concatenate((self._P, P), axis=-1)
+        self._mu = np.concatenate((self._mu, np.full((m, k), 1.0 / m)), axis=-1)
+        self._exist = np.concatenate((self._exist, np.full(k, self.config.existence.initial)))
+        self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
+        self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
+        self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
+
+    def _new_ids(self, k: int) -> np.ndarray:
+        if self._next_id + k <= _ID_SPACE and not self._wrapped:
+            ids = np.arange(self._next_id, self._next_id + k, dtype=np.int64)
+            self._next_id += k
+            return ids
+        # Wrapped around the uint32 space: skip ids still in use.
+        self._wrapped = True
+        out = []
+        live = set(self._ids.tolist())
+        while len(out) < k:
+            if self._next_id >= _ID_SPACE:
+                self._next_id = 1
+            if self._next_id not in live:
+                out.append(self._next_id)
+            self._next_id += 1
+        return np.asarray(out, dtype=np.int64)
+
+    def _records(self) -> np.ndarray:
+        out = np.zeros(len(self._ids), TRACK_DTYPE)
+        if not len(out):
+            return out
+        xc, Pc = self._xc, self._Pc
+        out['track_id'] = self._ids
+        out['x'], out['y'], out['vx'], out['vy'] = xc
+        out['existence'] = self._exist
+        out['confirmed'] = self._confirmed
+        for j, f in enumerate(self._mode_field):
+            out[('mode_cv', 'mode_ccw', 'mode_cw')[f]] += self._mu[j]
+        out['cov_xx'], out['cov_xy'], out['cov_yy'] = Pc[0, 0], Pc[0, 1], Pc[1, 1]
+        out['cov_vxvx'], out['cov_vyvy'] = Pc[2, 2], Pc[3, 3]
+        return out
+
+    def _fill_counts(self, rep: StepReport) -> None:
+        rep.n_tracks = len(self._ids)
+        rep.n_confirmed = int(self._confirmed.sum())
