@@ -11,6 +11,9 @@ CONSOLE_SCRIPTS = [
     'seaking_sim = sonar_tracking.nodes.seaking_sim:main',
     'active_detector = sonar_tracking.nodes.active_detector:main',
     'sonar_eval = sonar_tracking.tools.sonar_eval:main',
+    'sonar_stack = sonar_tracking.tools.sonar_stack:main',
+    'bag_record = sonar_tracking.tools.bag_record:main',
+    'bag_replay = sonar_tracking.tools.bag_replay:main',
 ]
 
 setup(

@@ -1,11 +1,27 @@
-"""How every process of the package runs ROS: DDS defaults and the ros2/demos main() pattern."""
+"""How every process of the package runs ROS: DDS defaults, parent watch, the ros2/demos main()."""
 from __future__ import annotations
 
+import ctypes
 import os
+import signal
 from importlib import resources
 from typing import Callable
 
-__all__ = ['run_node', 'configure_dds']
+__all__ = ['run_node', 'prepare_process', 'configure_dds']
+
+
+def prepare_process() -> None:
+    """Call first in every ROS entry point: DDS defaults, and under ``sonar_stack`` a parent watch.
+
+    ``sonar_stack`` sets ``SONAR_TRACKING_DIE_WITH_PARENT``: the process then asks Linux for
+    SIGTERM when its parent dies (``PR_SET_PDEATHSIG``), so a killed stack leaves no orphans.
+    """
+    configure_dds()
+    if os.environ.get('SONAR_TRACKING_DIE_WITH_PARENT'):
+        try:
+            ctypes.CDLL('libc.so.6', use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
 
 
 def configure_dds() -> None:
@@ -20,7 +36,7 @@ def configure_dds() -> None:
 
 def run_node(factory: Callable[[], 'rclpy.node.Node'], args: list[str] | None = None) -> int:
     """Init rclpy, spin the node until Ctrl-C or shutdown, clean up; returns the exit status."""
-    configure_dds()
+    prepare_process()
     import rclpy
     from rclpy.executors import ExternalShutdownException
     rclpy.init(args=args)
