@@ -105,11 +105,12 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.n
     n_strips = int(span_x // width) + 1
     y0 = zy.min()
     span_y = zy.max() - y0 + 1.0
-    strip = np.minimum(((zx - x0) // width).astype(np.intp), n_strips - 1)
+    # The same expression bins points and box edges, so a point on an edge lands in the edge's strip.
+    strip = np.minimum(np.floor((zx - x0) / width).astype(np.intp), n_strips - 1)
     key = strip * span_y + (zy - y0)
     order = np.argsort(key, kind='stable')
     keys = key[order]
-    s_lo = np.clip(np.floor((lo[:, 0] - x0) / width), 0, n_strips).astype(np.intp)
+    s_lo = np.clip(np.floor((lo[:, 0] - x0) / width), 0, n_strips - 1).astype(np.intp)
     s_hi = np.clip(np.floor((hi[:, 0] - x0) / width), -1, n_strips - 1).astype(np.intp)
     ns = np.maximum(s_hi - s_lo + 1, 0)
     tr = np.repeat(np.arange(n_tracks), ns)

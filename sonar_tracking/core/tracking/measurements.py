@@ -41,6 +41,8 @@ def as_measurements(z, R=None, rho=None, *, default_R: np.ndarray | None = None,
     if z.ndim != 2:
         raise TrackingInputError(f'z must have shape (N, d), got {z.shape}')
     n, d = z.shape
+    if default_R is not None and d != default_R.shape[-1]:
+        raise TrackingInputError(f'z has {d} columns; the tracker expects {default_R.shape[-1]}-D positions')
     if R is None:
         if default_R is None:
             raise TrackingInputError('R is None and no default measurement covariance is configured')

@@ -197,8 +197,6 @@ class ImmIpdaTracker:
         if cfg.clutter.source == 'constant':
             rho = None
         z, R, rho = as_measurements(z, R, rho, default_R=self._default_R, default_rho=cfg.clutter.density)
-        if z.shape[1] != self.d:
-            raise TrackingInputError(f'z has {z.shape[1]} columns; the modes track {self.d}-D positions')
         rep = self.report = StepReport(t=t, n_measurements=len(z))
         if self._t is not None:
             dt = t - self._t
@@ -218,9 +216,12 @@ class ImmIpdaTracker:
 
         pair_track = pair_meas = np.zeros(0, dtype=np.intp)
         if len(self._ids):
-            pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho)
+            # Overflow on absurd input shows as non-finite estimates, which _manage removes.
+            with np.errstate(over='ignore', invalid='ignore', divide='ignore', under='ignore'):
+                pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho)
             rep.n_pairs = len(pair_track)
-            self._manage(rep)
+            with np.errstate(over='ignore', invalid='ignore'):
+                self._manage(rep)
             alive = self._alive
             # Pairs of surviving tracks, re-indexed (used to find measurements of confirmed tracks).
             new_index = np.cumsum(alive) - 1
