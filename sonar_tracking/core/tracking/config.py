@@ -8,6 +8,7 @@ the paper's harbour scenarios.
 """
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -18,14 +19,16 @@ __all__ = ['ImmConfig', 'DetectionConfig', 'ClutterConfig', 'ExistenceConfig', '
 
 #: Mode names the tracker knows; ``TRACK_DTYPE`` has one probability field per name.
 MODE_NAMES = ('cv', 'ccw', 'cw')
+#: Mode sets ``imm.models`` accepts: any non-empty subset, in the order above.
+_MODE_SETS = tuple(','.join(c) for k in (3, 1, 2) for c in itertools.combinations(MODE_NAMES, k))
 
 
 @dataclass(frozen=True)
 class ImmConfig(Config):
     """Motion modes (eqs. 3-4), their process noise and the mode transition matrix (eq. 21)."""
 
-    models: str = setting('cv,ccw,cw', 'IMM modes, comma-separated from cv (eq. 3), ccw (eq. 4, +Omega), '
-                          'cw (eq. 4, -Omega); "cv" alone is a single-model IPDA')
+    models: str = setting('cv,ccw,cw', 'IMM modes: cv (eq. 3), ccw (eq. 4, +Omega), cw (eq. 4, -Omega); '
+                          '"cv" alone is a single-model IPDA', choices=_MODE_SETS)
     turn_rate_ccw_deg: float = setting(3.0, 'turn rate of the ccw mode (Table 2: 3 deg/s)', unit='deg/s',
                                        low=0.0, high=180.0, low_open=True)
     turn_rate_cw_deg: float = setting(3.0, 'turn rate magnitude of the cw mode (Table 2: 3 deg/s)', unit='deg/s',
@@ -43,14 +46,7 @@ class ImmConfig(Config):
         return tuple(m.strip() for m in self.models.split(','))
 
     def validate(self) -> None:
-        names = self.mode_names
-        bad = [m for m in names if m not in MODE_NAMES]
-        if bad or not names:
-            raise ConfigError(f'models = {self.models!r}: unknown mode(s) {bad}; use a comma-separated '
-                              f'list of {list(MODE_NAMES)}')
-        if len(set(names)) != len(names):
-            raise ConfigError(f'models = {self.models!r} names a mode twice')
-        if len(names) > 1 and self.mode_stay_probability == 1.0:
+        if len(self.mode_names) > 1 and self.mode_stay_probability == 1.0:
             raise ConfigError('mode_stay_probability = 1 freezes the modes; use < 1 with several models')
 
 
@@ -91,9 +87,9 @@ class ExistenceConfig(Config):
 
     def validate(self) -> None:
         if not self.terminate < self.initial:
-            raise ConfigError(f'existence.terminate = {self.terminate} must be < existence.initial = {self.initial}')
+            raise ConfigError(f'terminate = {self.terminate} must be < initial = {self.initial}')
         if not self.terminate < self.confirm:
-            raise ConfigError(f'existence.terminate = {self.terminate} must be < existence.confirm = {self.confirm}')
+            raise ConfigError(f'terminate = {self.terminate} must be < confirm = {self.confirm}')
 
 
 @dataclass(frozen=True)
