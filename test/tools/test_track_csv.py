@@ -1,0 +1,145 @@
+"""``sonar_eval track``: CSV in, tracks out, bad rows reported by line, parameter files."""
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig
+from sonar_tracking.tools import track_csv
+
+CONFIG = Path(__file__).resolve().parents[2] / 'config' / 'imm_ipda.yaml'
+
+
+def scenario(seed=50, n_scans=25, n_clutter=5):
+    """Rows (scan, t, x, y, r_xx, r_xy, r_yy, clutter_density) and the truth per scan."""
+    rng = np.random.default_rng(seed)
+    rows, truth = [], []
+    pos, vel = np.array([100.0, -50.0]), np.array([6.0, 3.0])
+    for k in range(n_scans):
+        p = pos + vel * k
+        truth.append(p)
+        pts = [p + rng.normal(0, 3.0, 2)] + list(p + rng.uniform(-300, 300, (n_clutter, 2)))
+        for q in pts:
+            rows.append((k, 10.0 + 2.0 * k, q[0], q[1], 9.0, 1.0, 9.0, 2e-5))
+    return rows, np.array(truth)
+
+
+def write_csv(path: Path, rows, header=('scan', 't', 'x', 'y', 'r_xx', 'r_xy', 'r_yy', 'clutter_density')):
+    with open(path, 'w', newline='') as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        for r in rows:
+            w.writerow(r)
+
+
+def read_output(path: Path) -> list[dict]:
+    with open(path, newline='') as f:
+        return list(csv.DictReader(f))
+
+
+def run(capsys, *argv):
+    code = track_csv.main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_tracks_recorded_detections_exactly_as_the_tracker_does(tmp_path, capsys):
+    rows, truth = scenario()
+    write_csv(tmp_path / 'det.csv', rows)
+    code, _, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', tmp_path / 'tracks.csv')
+    assert code == 0, err
+    out = read_output(tmp_path / 'tracks.csv')
+    assert list(out[0]) == list(track_csv.OUTPUT_COLUMNS)
+    # The same numbers as the tracker run directly on the same scans.
+    trk = ImmIpdaTracker(TrackerConfig())
+    expected = []
+    for k in range(len(truth)):
+        sel = [r for r in rows if r[0] == k]
+        z = np.array([[r[2], r[3]] for r in sel])
+        R = np.broadcast_to(np.array([[9.0, 1.0], [1.0, 9.0]]), (len(sel), 2, 2))
+        for rec in trk.step(10.0 + 2.0 * k, z, R, np.full(len(sel), 2e-5)):
+            expected.append((k, int(rec['track_id']), rec['x'], rec['existence'], int(rec['confirmed'])))
+    assert len(out) == len(expected)
+    for row, (k, tid, x, e, c) in zip(out, expected):
+        assert (int(row['scan']), int(row['track_id']), int(row['confirmed'])) == (k, tid, c)
+        assert float(row['x']) == pytest.approx(x, rel=1e-9) and float(row['existence']) == pytest.approx(e, rel=1e-9)
+    last = [r for r in out if int(r['scan']) == len(truth) - 1 and r['confirmed'] == '1']
+    assert len(last) == 1
+    assert np.hypot(float(last[0]['x']) - truth[-1, 0], float(last[0]['y']) - truth[-1, 1]) < 10
+    assert f'{len(truth)} scans' in err and 'written to' in err
+
+
+def test_bad_rows_are_reported_by_line_number_and_the_rest_processed(tmp_path, capsys):
+    rows, _ = scenario(n_scans=12, n_clutter=2)
+    text = ['scan,t,x,y,r_xx,r_xy,r_yy,clutter_density']
+    text += [','.join(map(str, r)) for r in rows]
+    bad = {
+        'a,12,1,1,9,0,9,1e-5': 'scan',                       # scan not an integer
+        '0,11,1,1,9,0,9,1e-5': 'differs from the time',      # wrong time for scan 0
+        '1,12,abc,1,9,0,9,1e-5': "x = 'abc' is not a number",
+        '2,14,nan,1,9,0,9,1e-5': 'not finite',
+        '3,16,5,5,1,5,1,1e-5': 'not positive definite',
+        '4,18,5,5,9,0,9,-1': 'clutter density',
+        '5,20,5,5,9,,9,1e-5': 'r_xx, r_xy, r_yy must be given together',
+    }
+    lines = {}
+    for i, (row, _) in enumerate(bad.items()):
+        text.insert(5 + 3 * i, row)
+    for n, row in enumerate(text, start=1):
+        if row in bad:
+            lines[row] = n
+    (tmp_path / 'det.csv').write_text('\n'.join(text) + '\n')
+    code, _, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', tmp_path / 'out.csv')
+    assert code == 0
+    for row, reason in bad.items():
+        hit = [ln for ln in err.splitlines() if ln.startswith(f'line {lines[row]}:')]
+        assert hit and reason in hit[0], (row, err)
+    assert f'{len(bad)} bad rows skipped' in err
+    out = read_output(tmp_path / 'out.csv')
+    assert {int(r['scan']) for r in out} == set(range(12))
+
+
+def test_optional_columns_empty_scans_and_time_going_back(tmp_path, capsys):
+    text = 'scan,t,x,y\n0,0,0,0\n1,1,1,1\n2,2,,\n3,3,3,3\n4,1,0,0\n4,1,100,100\n'
+    (tmp_path / 'det.csv').write_text(text)
+    code, out, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', '-')
+    assert code == 0, err
+    assert 'no clutter_density column' in err and 'time went backwards' in err
+    rows = list(csv.DictReader(io.StringIO(out)))
+    assert {int(r['scan']) for r in rows} == {0, 1, 2, 3, 4}      # scan 2 had no detections but tracks
+    ids = {s: {int(r['track_id']) for r in rows if int(r['scan']) == s} for s in range(5)}
+    assert min(ids[4]) > max(ids[3]), 'after the restart tracks get new ids'
+
+
+def test_parameter_files(tmp_path, capsys):
+    rows, _ = scenario(n_scans=5)
+    write_csv(tmp_path / 'det.csv', rows)
+    code, _, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', tmp_path / 'a.csv', '--params', CONFIG)
+    assert code == 0, err
+    (tmp_path / 'plain.yaml').write_text('imm:\n  models: cv\ndetection.probability: 0.8\n')
+    code, _, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', tmp_path / 'b.csv',
+                       '--params', tmp_path / 'plain.yaml', '--confirmed-only')
+    assert code == 0, err
+    (tmp_path / 'typo.yaml').write_text('imm_ipda_tracker:\n  ros__parameters:\n    detection.probabilty: 0.8\n')
+    code, _, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', tmp_path / 'c.csv',
+                       '--params', tmp_path / 'typo.yaml')
+    assert code == 2 and 'detection.probabilty' in err
+    (tmp_path / 'range.yaml').write_text('detection.probability: 2.0\n')
+    code, _, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', tmp_path / 'c.csv',
+                       '--params', tmp_path / 'range.yaml')
+    assert code == 2 and 'detection.probability' in err
+
+
+def test_unusable_input_exits_2_with_the_reason(tmp_path, capsys):
+    (tmp_path / 'nocol.csv').write_text('scan,t,x\n0,0,1\n')
+    code, _, err = run(capsys, '--input', tmp_path / 'nocol.csv', '--output', tmp_path / 'o.csv')
+    assert code == 2 and "lacks column(s) ['y']" in err
+    code, _, err = run(capsys, '--input', tmp_path / 'missing.csv', '--output', tmp_path / 'o.csv')
+    assert code == 2 and 'cannot read' in err
+    (tmp_path / 'empty.csv').write_text('')
+    code, _, err = run(capsys, '--input', tmp_path / 'empty.csv', '--output', tmp_path / 'o.csv')
+    assert code == 2 and 'empty' in err
