@@ -1,27 +1,41 @@
 """``sonar_eval``: offline evaluation and tools of sonar_tracking.
 
 Subcommands:
-  bench   time the core and adapters (table + JSON), with ratios against baselines
+  bench            time the core and adapters (table + JSON), with ratios against baselines
+  track            IMM-IPDA on recorded detections: CSV in, CSV of tracks out
+  scenario1        ESC paper Scenario 1 (§5.1): ESC against fixed thresholds, Monte Carlo
+  scenario2        ESC paper Scenario 2 (§5.2): manoeuvring target, two clutter regions
+  desired-density  ESC paper Algorithm 1 (§4): the desired clutter density for an SNR
 """
 from __future__ import annotations
 
 import argparse
 import sys
 
-from . import bench
-
 __all__ = ['main', 'build_parser']
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every subcommand."""
-    parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].strip('`'),
+    """The argument parser with every subcommand (their modules load only when run)."""
+    from . import bench, esc_eval, track_csv
+    parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].replace('``', ''),
+                                     epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest='command', metavar='COMMAND')
     sub.required = True
     p = sub.add_parser('bench', help='run benchmarks: median and spread per case, ratios to baselines')
     bench.add_arguments(p)
     p.set_defaults(handler=bench.main_args)
+    p = sub.add_parser('track', help='IMM-IPDA tracks from a CSV of detections')
+    track_csv.add_arguments(p)
+    p.set_defaults(handler=track_csv.main_args)
+    for scenario in ('scenario1', 'scenario2'):
+        p = sub.add_parser(scenario, help=f'ESC paper {scenario}: CTTR, RMSE, threshold, density by method')
+        esc_eval.add_scenario_arguments(p, scenario)
+        p.set_defaults(handler=esc_eval.main_scenario)
+    p = sub.add_parser('desired-density', help='ESC paper Algorithm 1: rho_D for each SNR, and the table')
+    esc_eval.add_desired_density_arguments(p)
+    p.set_defaults(handler=esc_eval.main_desired_density)
     return parser
 
 
