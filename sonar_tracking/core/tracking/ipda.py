@@ -113,18 +113,10 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     # eq. (28) per mode (zero outside the mode's gate), divided by rho_i (eqs. 32-33).
     a = np.where(in_gate, innov.density(), 0.0)
     a *= 1.0 / (p_gate * rho)
-    w, s_inv = innov.w, innov.s_inv
+    w = innov.w
     iu, ju, sym = _symmetric_indices(d)
-    upper = list(zip(iu.tolist(), ju.tolist()))
-    vals = np.empty((1 + d + len(upper),) + a.shape)               # a, a w, a (w w^T - S^-1)
-    vals[0] = a
-    for i in range(d):
-        np.multiply(a, w[i], out=vals[1 + i])
-    for k, (i, j) in enumerate(upper):
-        row = vals[1 + d + k]
-        np.multiply(w[i], w[j], out=row)
-        row -= s_inv[i, j]
-        row *= a
+    # Per pair and mode: a, a w and a (w w^T - S^-1) (upper triangle), summed per track below.
+    vals = np.concatenate((a[None], a * w, a * (w[iu] * w[ju] - innov.s_inv[iu, ju])))
     sums = segment_sum(vals.reshape(len(vals) * n_modes, -1), track, n_tracks)
     sums = sums.reshape(len(vals), n_modes, n_tracks)
 

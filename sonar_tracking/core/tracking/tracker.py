@@ -181,6 +181,8 @@ class ImmIpdaTracker:
     def step(self, t: float, z, R=None, rho=None) -> np.ndarray:
         """Process one scan and return all tracks (tentative and confirmed) as ``TRACK_DTYPE``.
 
+        The returned array is read-only (it is not copied); copy it to change it.
+
         Parameters
         ----------
         t : scan time [s].
@@ -203,7 +205,7 @@ class ImmIpdaTracker:
             if dt == 0.0:
                 rep.duplicate_stamp = True
                 self._fill_counts(rep)
-                return self._output.copy()
+                return self._output
             if dt < 0.0:
                 rep.reset = f'time went backwards by {-dt:.6g} s (a replayed bag looping?): all tracks removed'
             elif dt > cfg.track.max_gap:
@@ -233,7 +235,7 @@ class ImmIpdaTracker:
         self._t = t
         self._output = self._records()
         self._fill_counts(rep)
-        return self._output.copy()
+        return self._output
 
     # ---------------------------------------------------------------- internals
     def _transitions(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -343,6 +345,7 @@ class ImmIpdaTracker:
     def _records(self) -> np.ndarray:
         out = np.zeros(len(self._ids), TRACK_DTYPE)
         if not len(out):
+            out.flags.writeable = False
             return out
         xc, Pc = self._xc, self._Pc
         out['track_id'] = self._ids
@@ -353,6 +356,7 @@ class ImmIpdaTracker:
             out[('mode_cv', 'mode_ccw', 'mode_cw')[f]] += self._mu[j]
         out['cov_xx'], out['cov_xy'], out['cov_yy'] = Pc[0, 0], Pc[0, 1], Pc[1, 1]
         out['cov_vxvx'], out['cov_vyvy'] = Pc[2, 2], Pc[3, 3]
+        out.flags.writeable = False         # handed out without a copy; the tracker keeps it as is
         return out
 
     def _fill_counts(self, rep: StepReport) -> None:
