@@ -7,6 +7,14 @@
 * :mod:`.gating` gates and likelihoods (eqs. 25-28), :mod:`.ipda` the update (eqs. 28-40),
 * :mod:`.measurements` input checks, :mod:`.management` initiation, confirmation, termination,
 * :mod:`.config` settings, :mod:`.tracker` the tracker that wires them together.
+
+Array layout. The per-track arrays of :mod:`.imm`, :mod:`.kalman`, :mod:`.gaussian`,
+:mod:`.ipda` and the per-pair arrays of :mod:`.gating` are component-major with tracks (or
+pairs) last: ``x (n, M, T)``, ``P (n, n, M, T)``, ``mu (M, T)`` for T tracks and M modes. numpy
+then works along the long axis, which is what makes one scan of hundreds of tracks cost
+microseconds per track. Motion models return ordinary ``(n, n)`` matrices, measurements come
+in as ``z (N, d)``, ``R (N, d, d)``, and :meth:`.ImmIpdaTracker.estimates` /
+:meth:`.ImmIpdaTracker.mode_states` give tracks-first copies.
 """
 from .config import MODE_NAMES, TrackerConfig
 from .errors import TrackingError, TrackingInputError
