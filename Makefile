@@ -55,7 +55,9 @@ test: build
 demo: $(STAMP)
 	$(VPY) -m sonar_tracking.tools.demo
 
+# Stone Soup is a bench-only extra (the IMM-IPDA comparison), never a runtime dependency.
 bench: $(STAMP)
+	$(VPY) -m pip install --quiet -r requirements-bench.txt
 	$(VENV)/bin/sonar_eval bench --json out/bench.json
 
 clean:

@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
+from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
 from sonar_tracking.nodes.seaking_sim import SimNodeConfig
 
 CONFIG = Path(__file__).resolve().parents[1] / 'config'
@@ -20,6 +21,7 @@ def sim_config(params):
 NODES = {
     'seaking_sim': (SimNodeConfig, sim_config),
     'active_detector': (DetectorNodeConfig, DetectorNodeConfig.from_flat),
+    'imm_ipda_tracker': (TrackerNodeConfig, TrackerNodeConfig.from_flat),
 }
 
 
