@@ -275,7 +275,10 @@ def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
     if ring.any():
         e0, f0 = np.maximum(r0 - 1, 0), np.maximum(c0 - 1, 0)
         e1, f1 = np.minimum(r1 + 1, h_img - 1), np.minimum(c1 + 1, w_img - 1)
-        r_sum, r_cnt = background_of(*(np.where(ring, a, 0) for a in (e0, f0)), *(np.where(ring, a, -1) for a in (e1, f1)))
+        # Boxes of regions that have background are made empty (end before start).
+        e0, f0 = np.where(ring, e0, 0), np.where(ring, f0, 0)
+        e1, f1 = np.where(ring, e1, -1), np.where(ring, f1, -1)
+        r_sum, r_cnt = background_of(e0, f0, e1, f1)
         b_sum, b_cnt = np.where(ring, r_sum, b_sum), np.where(ring, r_cnt, b_cnt)
     if (present & (b_cnt < 0.5)).any():
         valid = np.isfinite(img) & (img > 0)
@@ -317,8 +320,8 @@ def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
     h = glcm(levels, lab, n, s, config.glcm_distance).astype(np.float64)
     lonely = (h.sum(axis=(1, 2)) == 0) & present
     if lonely.any():  # a one-pixel region: the pixel paired with itself
-        first = np.full(bins, -1, np.int64)
-        first[own[::-1]] = np.arange(own.size)[::-1]
+        first = np.full(bins, own.size, np.int64)
+        np.minimum.at(first, own, np.arange(own.size))  # each region's first pixel
         ql = levels.ravel()[idx[first[1:][lonely]]]
         h[np.flatnonzero(lonely), ql, ql] = 1.0
     tex = glcm_features(h)
@@ -337,8 +340,8 @@ def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
 
 def patch_features(patches: np.ndarray, masks: np.ndarray, config: FeatureConfig | None = None) -> np.ndarray:
     """Features f01..f30 of ``K`` image patches ``(K, h, w)``, each over the pixels of its mask
-    ``(K, h, w)`` bool: shape ``(K, 30)``. For computing features at many positions (particles)
-    in one call; the patches are stacked with a no-data row between them and handed to
+    ``(K, h, w)`` bool (pixels that hold data): shape ``(K, 30)``, NaN rows for empty masks. For
+    computing features at many positions (particles) in one call; the patches are stacked with a no-data row between them and handed to
     :func:`region_features`, so the results are exactly those of the same pixels in an image."""
     p = np.asarray(patches, dtype=np.float64)
     m = np.asarray(masks, dtype=bool)

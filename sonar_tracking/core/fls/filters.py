@@ -17,15 +17,20 @@ how. Our design, each choice with its reason:
    developed, exponential speckle of mean 1). Intensity changes with range (spreading losses the
    time-varying gain does not quite undo, receiver noise growing far out), so thresholds in
    units of the local background keep one false-alarm rate at every range.
-3. **A trimmed mean rather than the bare median.** Speckle is multiplicative with an exponential
-   intensity law: the mean of the window is the efficient (sufficient) statistic for the echo
-   level, while the median of nine exponential samples throws away about half of the information
-   and erodes a target two cells deep. The filter drops the ``trim`` largest and ``trim`` smallest
-   samples of each window and averages the rest (an alpha-trimmed mean: ``trim = 0`` is the box
-   mean, ``trim = (n - 1) / 2`` the median). With the default ``trim = 1`` a single impulsive cell
-   (interference, a fish) cannot make a detection on its own, which is what the median is for,
-   at a small cost in efficiency. Samples outside the data (beyond the scan limits or the range
-   window) are left out rather than padded.
+3. **A trimmed mean rather than the bare median.** The filter sorts each window, drops the
+   ``trim`` largest and ``trim`` smallest samples and averages the rest: an alpha-trimmed mean,
+   the order-statistic family whose ends are the box mean (``trim = 0``) and the median
+   (``trim = (n - 1) / 2``). Speckle is multiplicative with an exponential intensity law, for which
+   the window mean is the efficient (sufficient) statistic of the echo level; the median of nine
+   exponential samples throws much of that away and erodes a target only two cells deep (a point
+   echo is 2-3 range bins by 2-3 beams). Measured on 200 simulated SeaKing frames (FLS Table 5
+   situations, seeds 2000-2199), targets of 10 dB or more: the 3 x 3 median in cells finds 77% at
+   0.05 false regions per frame (82% at 0.7), ``trim = 1`` 96% at 0.02, the mean (``trim = 0``)
+   99.5% at 0.02; heavier-tailed (Weibull) clutter did not change the order. So the default is
+   ``trim = 0``; ``trim = 1`` is there for sonars with impulsive interference, where one bright
+   cell must not make a detection on its own (the reason a median is used at all), at that cost
+   in small targets. Samples outside the data (beyond the scan limits or the range window) are
+   left out rather than padded.
 
 Working in log intensity makes no difference to a median (it commutes with monotone maps), and a
 mean of logs is biased and less efficient for exponential speckle, so the filter averages linear
