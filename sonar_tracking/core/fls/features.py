@@ -124,10 +124,10 @@ def hu_moments(eta: dict[str, np.ndarray]) -> np.ndarray:
     return np.stack([m1, m2, m3, m4, m5, m6, m7], axis=-1)
 
 
-def _neighbours(idx: np.ndarray, shape: tuple[int, int], dr: int, dc: int) -> tuple[np.ndarray, np.ndarray]:
-    """Flat indices of the pixels ``(dr, dc)`` away from flat indices ``idx``, and whether they exist."""
+def _neighbours(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int], dr: int, dc: int
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """Flat indices of the pixels ``(dr, dc)`` away from pixels ``(rows, cols)``, and whether they exist."""
     h, w = shape
-    rows, cols = np.divmod(idx, w)
     r, c = rows + dr, cols + dc
     inside = (r >= 0) & (r < h) & (c >= 0) & (c < w)
     return np.where(inside, r * w + c, 0), inside
@@ -141,11 +141,12 @@ def glcm(levels: np.ndarray, labels: np.ndarray, n: int, s: int, distance: int =
     """
     flat_lab, flat_lev = labels.ravel(), levels.ravel()
     idx = np.flatnonzero(flat_lab)
+    rows, cols = np.divmod(idx, labels.shape[1])
     own = flat_lab[idx].astype(np.int64)
     q = flat_lev[idx].astype(np.int64)
     counts = np.zeros((n + 1) * s * s, np.int64)
     for dr, dc in _DIRECTIONS:
-        nb, inside = _neighbours(idx, labels.shape, distance * dr, distance * dc)
+        nb, inside = _neighbours(rows, cols, labels.shape, distance * dr, distance * dc)
         same = inside & (flat_lab[nb] == own)
         code = (own[same] * s + q[same]) * s + flat_lev[nb[same]]
         counts += np.bincount(code, minlength=counts.size)
@@ -192,13 +193,14 @@ def glcm_features(h: np.ndarray) -> np.ndarray:
     corr = np.where(sd > 1e-15, cov / np.where(sd > 1e-15, sd, 1.0), 1.0)
     variance = np.einsum('kij,ki->k', h, (lv[None, :] - mux[:, None]) ** 2)
     # Sum and difference distributions: k = (i+1) + (j+1) = 2..2S, and |i - j| = 0..S-1.
-    ksum = (i + j).astype(np.int64).ravel()
-    kdif = np.abs(i - j).astype(np.int64).ravel()
+    # p_{x+y} and p_{x-y} by summing h over the anti-diagonals and the |i - j| bands (0/1 matrices).
+    cells = np.arange(s * s)
+    to_sum = np.zeros((s * s, 2 * s - 1))
+    to_sum[cells, (i + j).astype(np.int64).ravel()] = 1.0
+    to_dif = np.zeros((s * s, s))
+    to_dif[cells, np.abs(i - j).astype(np.int64).ravel()] = 1.0
     flat = h.reshape(h.shape[0], -1)
-    psum = np.zeros((h.shape[0], 2 * s - 1))
-    pdif = np.zeros((h.shape[0], s))
-    np.add.at(psum, (slice(None), ksum), flat)
-    np.add.at(pdif, (slice(None), kdif), flat)
+    psum, pdif = flat @ to_sum, flat @ to_dif
     k = np.arange(2, 2 * s + 1, dtype=np.float64)
     sum_avg = psum @ k
     sum_ent = entropy(psum, 1)
@@ -207,15 +209,35 @@ def glcm_features(h: np.ndarray) -> np.ndarray:
     return np.stack([inertia, ent, asm, idm, corr, variance, sum_avg, sum_ent, sum_var, dif_ent], axis=1)
 
 
-def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
-                    config: FeatureConfig | None = None) -> np.ndarray:
-    """Features f01..f30 (Table 2) of regions ``1..n`` of ``labels`` on ``image``: shape ``(n, 30)``.
+_GROUPS = {  # feature numbers -> the group of computations they need
+    'edge': {2, 5, 10, 11, 12, 13}, 'background': {6, 7, 8, 9}, 'shape': {10, 11, 12, 13},
+    'hu': set(range(14, 21)), 'glcm': set(range(21, 31)),
+}
 
-    ``image`` holds linear intensities (NaN or 0 = no data); ``labels`` int, 0 = no region. Rows of
-    regions without pixels are NaN. All regions are computed together from their pixel lists, so
-    the cost grows with the number of region pixels, not with the image.
+
+def _wanted(features) -> list[int]:
+    if features is None:
+        return list(range(1, N_FEATURES + 1))
+    out = [int(f) for f in features]
+    bad = [f for f in out if not 1 <= f <= N_FEATURES]
+    if bad or not out:
+        raise ValueError(f'features {list(features)} must be Table 2 numbers 1..{N_FEATURES}')
+    return out
+
+
+def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
+                    config: FeatureConfig | None = None, features=None) -> np.ndarray:
+    """Features of Table 2 of regions ``1..n`` of ``labels`` on ``image``.
+
+    Returns ``(n, 30)`` (f01..f30), or with ``features`` (Table 2 numbers, e.g. the selected
+    subset) ``(n, len(features))`` in that order, computing only what those need. ``image`` holds
+    linear intensities (NaN or 0 = no data); ``labels`` int, 0 = no region. Rows of regions
+    without pixels are NaN. All regions are computed together from their pixel lists, so the cost
+    grows with the number of region pixels, not with the image.
     """
     config = config or FeatureConfig()
+    wanted = _wanted(features)
+    need = {g for g, members in _GROUPS.items() if members & set(wanted)}
     img = np.asarray(image, dtype=np.float64)
     lab = np.asarray(labels)
     if img.ndim != 2 or lab.shape != img.shape:
@@ -223,124 +245,135 @@ def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
     lab = lab.astype(np.int64, copy=False)
     if n is None:
         n = int(lab.max(initial=0))
-    out = np.full((n, N_FEATURES), np.nan)
+    out = np.full((n, N_FEATURES + 1), np.nan)  # column 0 unused: columns are Table 2 numbers
     if n == 0:
-        return out
+        return out[:, wanted]
     h_img, w_img = img.shape
-    idx = np.flatnonzero(lab)
-    own = lab.ravel()[idx]
+    flat_lab, flat_img = lab.ravel(), img.ravel()
+    idx = np.flatnonzero(flat_lab)
+    own = flat_lab[idx]
     if own.size and own.max() > n:
         raise ValueError(f'labels go up to {own.max()} but n = {n}')
-    rows, cols = np.divmod(idx, w_img)
-    rows, cols = rows.astype(np.float64), cols.astype(np.float64)
-    f = img.ravel()[idx]
+    ri, ci = np.divmod(idx, w_img)
+    rows, cols = ri.astype(np.float64), ci.astype(np.float64)
+    f = flat_img[idx]
     bins = n + 1
-    count = lambda w=None: np.bincount(own, weights=w, minlength=bins)[1:]
+
+    def count(w=None, who=own) -> np.ndarray:
+        return np.bincount(who, weights=w, minlength=bins)[1:]
+
     area = count()
     present = area > 0
     safe_area = np.where(present, area, 1.0)
 
-    # (a) basic: area, edge pixels (4-neighbourhood), mean, standard deviation, compactness.
-    flat_lab = lab.ravel()
-    edge = np.zeros(idx.size, bool)
-    for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
-        nb, inside = _neighbours(idx, lab.shape, dr, dc)
-        edge |= ~inside | (flat_lab[nb] != own)
-    perim = np.bincount(own[edge], minlength=bins)[1:].astype(np.float64)
+    # (a) basic: area, mean, standard deviation; edge pixels (4-neighbourhood), compactness.
     mean = count(f) / safe_area
-    var = count((f - mean[own - 1]) ** 2) / safe_area
-    std = np.sqrt(np.clip(var, 0.0, None))
-    compact = 4.0 * np.pi * area / np.where(perim > 0, perim, 1.0) ** 2
+    dev = f - mean[own - 1]
+    out[:, 1], out[:, 3] = area, mean
+    out[:, 4] = np.sqrt(np.clip(count(dev * dev) / safe_area, 0.0, None))
+    if 'edge' in need:
+        edge = np.zeros(idx.size, bool)
+        for dr, dc in ((-1, 0), (1, 0), (0, -1), (0, 1)):
+            nb, inside = _neighbours(ri, ci, lab.shape, dr, dc)
+            edge |= ~inside | (flat_lab[nb] != own)
+        perim = count(who=own[edge]).astype(np.float64)
+        out[:, 2] = perim
+        out[:, 5] = 4.0 * np.pi * area / np.where(perim > 0, perim, 1.0) ** 2
 
-    # f06: background mean over the bounding rectangle (pixels not in the region, with data).
-    big = np.iinfo(np.int64).max
-    ri, ci = rows.astype(np.int64), cols.astype(np.int64)
-    r0, c0 = np.full(bins, big, np.int64), np.full(bins, big, np.int64)
-    r1, c1 = np.full(bins, -1, np.int64), np.full(bins, -1, np.int64)
-    np.minimum.at(r0, own, ri)
-    np.minimum.at(c0, own, ci)
-    np.maximum.at(r1, own, ri)
-    np.maximum.at(c1, own, ci)
-    r0, c0, r1, c1 = (a[1:] for a in (r0, c0, r1, c1))
-    flat_img = img.ravel()
+    # (a, b) f06 background mean over the bounding rectangle (pixels not in the region, with data),
+    # and the contrasts.
+    if 'background' in need:
+        big = np.iinfo(np.int64).max
+        r0, c0 = np.full(bins, big, np.int64), np.full(bins, big, np.int64)
+        r1, c1 = np.full(bins, -1, np.int64), np.full(bins, -1, np.int64)
+        np.minimum.at(r0, own, ri)
+        np.minimum.at(c0, own, ci)
+        np.maximum.at(r1, own, ri)
+        np.maximum.at(c1, own, ci)
+        r0, c0, r1, c1 = (a[1:] for a in (r0, c0, r1, c1))
 
-    def background_of(a0, b0, a1, b1) -> tuple[np.ndarray, np.ndarray]:
-        k, pix = _box_pixels(a0, a1, b0, b1, w_img)
-        v = flat_img[pix]
-        use = (flat_lab[pix] != k + 1) & np.isfinite(v) & (v > 0)
-        return (np.bincount(k[use], weights=v[use], minlength=n), np.bincount(k[use], minlength=n).astype(float))
+        def background_of(a0, b0, a1, b1) -> tuple[np.ndarray, np.ndarray]:
+            k, pix = _box_pixels(a0, a1, b0, b1, w_img)
+            v = flat_img[pix]
+            use = (flat_lab[pix] != k + 1) & np.isfinite(v) & (v > 0)
+            return (np.bincount(k[use], weights=v[use], minlength=n),
+                    np.bincount(k[use], minlength=n).astype(float))
 
-    b_sum, b_cnt = background_of(r0, c0, r1, c1)
-    ring = present & (b_cnt < 0.5)
-    if ring.any():
-        e0, f0 = np.maximum(r0 - 1, 0), np.maximum(c0 - 1, 0)
-        e1, f1 = np.minimum(r1 + 1, h_img - 1), np.minimum(c1 + 1, w_img - 1)
-        # Boxes of regions that have background are made empty (end before start).
-        e0, f0 = np.where(ring, e0, 0), np.where(ring, f0, 0)
-        e1, f1 = np.where(ring, e1, -1), np.where(ring, f1, -1)
-        r_sum, r_cnt = background_of(e0, f0, e1, f1)
-        b_sum, b_cnt = np.where(ring, r_sum, b_sum), np.where(ring, r_cnt, b_cnt)
-    if (present & (b_cnt < 0.5)).any():
-        valid = np.isfinite(img) & (img > 0)
-        fallback = float(np.median(img[valid])) if valid.any() else 1.0
-    else:
+        b_sum, b_cnt = background_of(r0, c0, r1, c1)
+        ring = present & (b_cnt < 0.5)
+        if ring.any():
+            # The one-pixel ring around the rectangle; other regions' boxes made empty.
+            e0 = np.where(ring, np.maximum(r0 - 1, 0), 0)
+            f0 = np.where(ring, np.maximum(c0 - 1, 0), 0)
+            e1 = np.where(ring, np.minimum(r1 + 1, h_img - 1), -1)
+            f1 = np.where(ring, np.minimum(c1 + 1, w_img - 1), -1)
+            r_sum, r_cnt = background_of(e0, f0, e1, f1)
+            b_sum, b_cnt = np.where(ring, r_sum, b_sum), np.where(ring, r_cnt, b_cnt)
         fallback = 1.0
-    background = np.where(b_cnt > 0.5, b_sum / np.where(b_cnt > 0.5, b_cnt, 1.0), fallback)
+        if (present & (b_cnt < 0.5)).any():
+            valid = np.isfinite(img) & (img > 0)
+            fallback = float(np.median(img[valid])) if valid.any() else 1.0
+        background = np.where(b_cnt > 0.5, b_sum / np.where(b_cnt > 0.5, b_cnt, 1.0), fallback)
+        out[:, 6] = background
+        out[:, 7] = mean - background
+        out[:, 8] = mean / background
+        out[:, 9] = (mean - background) / (mean + background)
 
     # (c) shape moments of the edge-to-centroid distances (binary centroid).
-    cr, cc = count(rows) / safe_area, count(cols) / safe_area
-    e_own = own[edge]
-    dist = np.hypot(rows[edge] - cr[e_own - 1], cols[edge] - cc[e_own - 1])
-    e_cnt = np.bincount(e_own, minlength=bins)[1:].astype(np.float64)
-    e_safe = np.where(e_cnt > 0, e_cnt, 1.0)
-    m1 = np.bincount(e_own, weights=dist, minlength=bins)[1:] / e_safe
-    dev = dist - m1[e_own - 1]
-    mu = {r: np.bincount(e_own, weights=dev ** r, minlength=bins)[1:] / e_safe for r in (2, 3, 4)}
-    m1_safe = np.where(m1 > 0, m1, 1.0)
-    sm1 = np.where(m1 > 0, np.sqrt(np.clip(mu[2], 0, None)) / m1_safe, 0.0)
-    sm2 = np.where(m1 > 0, np.cbrt(mu[3]) / m1_safe, 0.0)
-    sm3 = np.where(m1 > 0, np.clip(mu[4], 0, None) ** 0.25 / m1_safe, 0.0)
+    if 'shape' in need:
+        cr, cc = count(rows) / safe_area, count(cols) / safe_area
+        e_own = own[edge]
+        dist = np.hypot(rows[edge] - cr[e_own - 1], cols[edge] - cc[e_own - 1])
+        e_cnt = count(who=e_own).astype(np.float64)
+        e_safe = np.where(e_cnt > 0, e_cnt, 1.0)
+        m1 = count(dist, e_own) / e_safe
+        d = dist - m1[e_own - 1]
+        d2 = d * d
+        mu2, mu3, mu4 = (count(w, e_own) / e_safe for w in (d2, d2 * d, d2 * d2))
+        m1_safe = np.where(m1 > 0, m1, 1.0)
+        sm1 = np.where(m1 > 0, np.sqrt(np.clip(mu2, 0, None)) / m1_safe, 0.0)
+        sm3 = np.where(m1 > 0, np.clip(mu4, 0, None) ** 0.25 / m1_safe, 0.0)
+        out[:, 10], out[:, 12], out[:, 13] = sm1, sm3, sm3 - sm1
+        out[:, 11] = np.where(m1 > 0, np.cbrt(mu3) / m1_safe, 0.0)
 
     # (d) moment invariants from eq. (1): intensity-weighted, p along rows, q along columns.
-    fw = np.where(np.isfinite(f), f, 0.0)
-    m00 = count(fw)
-    m00_safe = np.where(m00 > 0, m00, 1.0)
-    xb, yb = count(rows * fw) / m00_safe, count(cols * fw) / m00_safe
-    dx, dy = rows - xb[own - 1], cols - yb[own - 1]
-    eta = {}
-    for p, q in ((2, 0), (0, 2), (1, 1), (3, 0), (0, 3), (2, 1), (1, 2)):
-        mu_pq = count(dx ** p * dy ** q * fw)
-        eta[f'{p}{q}'] = mu_pq / m00_safe ** ((p + q + 2) / 2.0)
-    hu = hu_moments(eta)
+    if 'hu' in need:
+        fw = np.where(np.isfinite(f), f, 0.0)
+        m00 = count(fw)
+        m00_safe = np.where(m00 > 0, m00, 1.0)
+        xb, yb = count(rows * fw) / m00_safe, count(cols * fw) / m00_safe
+        dx, dy = rows - xb[own - 1], cols - yb[own - 1]
+        px = {0: 1.0, 1: dx, 2: dx * dx}
+        px[3] = px[2] * dx
+        py = {0: 1.0, 1: dy, 2: dy * dy}
+        py[3] = py[2] * dy
+        eta = {f'{p}{q}': count(px[p] * py[q] * fw) / m00_safe ** ((p + q + 2) / 2.0)
+               for p, q in ((2, 0), (0, 2), (1, 1), (3, 0), (0, 3), (2, 1), (1, 2))}
+        out[:, 14:21] = hu_moments(eta)
 
     # (e) grey-level co-occurrence statistics.
-    s = config.glcm_levels
-    levels = np.zeros(img.shape, np.int16 if s <= 32767 else np.int32)
-    levels.ravel()[idx] = quantise(f, config)
-    h = glcm(levels, lab, n, s, config.glcm_distance).astype(np.float64)
-    lonely = (h.sum(axis=(1, 2)) == 0) & present
-    if lonely.any():  # a one-pixel region: the pixel paired with itself
-        first = np.full(bins, own.size, np.int64)
-        np.minimum.at(first, own, np.arange(own.size))  # each region's first pixel
-        ql = levels.ravel()[idx[first[1:][lonely]]]
-        h[np.flatnonzero(lonely), ql, ql] = 1.0
-    tex = glcm_features(h)
+    if 'glcm' in need:
+        s = config.glcm_levels
+        levels = np.zeros(img.shape, np.int16 if s <= 32767 else np.int32)
+        levels.ravel()[idx] = quantise(f, config)
+        h = glcm(levels, lab, n, s, config.glcm_distance).astype(np.float64)
+        lonely = (h.sum(axis=(1, 2)) == 0) & present
+        if lonely.any():  # a one-pixel region: the pixel paired with itself
+            first = np.full(bins, own.size, np.int64)
+            np.minimum.at(first, own, np.arange(own.size))  # each region's first pixel
+            ql = levels.ravel()[idx[first[1:][lonely]]]
+            h[np.flatnonzero(lonely), ql, ql] = 1.0
+        out[:, 21:31] = glcm_features(h)
 
-    out[:, 0], out[:, 1], out[:, 2], out[:, 3], out[:, 4] = area, perim, mean, std, compact
-    out[:, 5] = background
-    out[:, 6] = mean - background
-    out[:, 7] = mean / background
-    out[:, 8] = (mean - background) / (mean + background)
-    out[:, 9], out[:, 10], out[:, 11], out[:, 12] = sm1, sm2, sm3, sm3 - sm1
-    out[:, 13:20] = hu
-    out[:, 20:30] = tex
     out[~present] = np.nan
-    return out
+    return out[:, wanted]
 
 
-def patch_features(patches: np.ndarray, masks: np.ndarray, config: FeatureConfig | None = None) -> np.ndarray:
+def patch_features(patches: np.ndarray, masks: np.ndarray, config: FeatureConfig | None = None,
+                   features=None) -> np.ndarray:
     """Features f01..f30 of ``K`` image patches ``(K, h, w)``, each over the pixels of its mask
-    ``(K, h, w)`` bool (pixels that hold data): shape ``(K, 30)``, NaN rows for empty masks. For
+    ``(K, h, w)`` bool (pixels that hold data): shape ``(K, 30)``, or ``(K, len(features))`` for
+    the Table 2 numbers ``features``; NaN rows for empty masks. For
     computing features at many positions (particles) in one call; the patches are stacked with a no-data row between them and handed to
     :func:`region_features`, so the results are exactly those of the same pixels in an image."""
     p = np.asarray(patches, dtype=np.float64)
@@ -352,4 +385,4 @@ def patch_features(patches: np.ndarray, masks: np.ndarray, config: FeatureConfig
     tall[:, :h] = p
     lab = np.zeros((k, h + 1, w), np.int64)
     lab[:, :h] = np.where(m, np.arange(1, k + 1)[:, None, None], 0)
-    return region_features(tall.reshape(k * (h + 1), w), lab.reshape(k * (h + 1), w), k, config)
+    return region_features(tall.reshape(k * (h + 1), w), lab.reshape(k * (h + 1), w), k, config, features)

@@ -187,6 +187,19 @@ def test_patch_features_equal_the_same_pixels_in_an_image():
         assert out[k] == pytest.approx(features_of(patches[k], masks[k]), rel=1e-9, abs=1e-15)
 
 
+def test_a_subset_is_the_same_columns_computed_alone():
+    rng = np.random.default_rng(8)
+    patches = rng.exponential(2.0, (20, 9, 9)) + 0.1
+    masks = patches > 1.5
+    full = patch_features(patches, masks, CFG)
+    for subset in [PAPER_FEATURES, (1,), (3, 6), (13, 12, 11, 10), (30, 21), tuple(range(30, 0, -1))]:
+        part = patch_features(patches, masks, CFG, features=subset)
+        assert part.shape == (20, len(subset))
+        assert part == pytest.approx(full[:, [f - 1 for f in subset]], rel=1e-12, nan_ok=True)
+    with pytest.raises(ValueError, match='1..30'):
+        patch_features(patches, masks, CFG, features=(0, 3))
+
+
 def test_special_cases_single_pixel_border_and_no_background():
     img = np.full((8, 8), 2.0)
     img[3, 4] = 50.0
