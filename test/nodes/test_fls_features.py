@@ -77,6 +77,37 @@ def test_images_grid_and_regions_from_the_simulator(ros, launch):
         assert math.hypot(x - r['x'], y - r['y']) < 0.6
 
 
+def test_moving_platform_regions_in_the_world_frame(ros, launch):
+    """Sea trial: the AUV's odometry places the sectors; the image follows the AUV and the regions
+    lie on the targets' paths in the world frame."""
+    from sensor_msgs.msg import PointCloud2
+    got, truths = {}, []
+    subs = subscribe(ros, got) + [ros.node.create_subscription(PointCloud2, '/sonar/truth', truths.append, KEEP_ALL)]
+    launch('fls_features')
+    wait_for_node(ros)
+    sim = launch('seaking_sim', 'scenario:=sea_trial', 'seed:=1', 'duration:=41.0', 'rate:=0.0', 'snr_db:=30.0',
+                 'wait_for_subscribers:=1', 'shutdown_when_done:=true')
+    ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
+    ros.wait(lambda: len(got['/fls/regions']) >= 3, 10.0, 'three frames')
+    time.sleep(0.3)
+    for s in subs:
+        ros.node.destroy_subscription(s)
+    frames = frames_of(got)
+    # Truth along the way: every target's position at every sector stamp.
+    path = np.array([(t['x'], t['y']) for m in truths for t in ma.cloud_to_array(m)])
+    # The image follows the AUV along +x (keeping the last two sweeps' footprints).
+    origins = [grid.origin_x for _, grid, _, _ in frames]
+    assert all(b >= a for a, b in zip(origins, origins[1:])) and origins[-1] > origins[0] + 8.0
+    found = 0
+    for _, grid, regions, frame_id in frames:
+        assert frame_id == 'world'
+        for r in regions:
+            d = np.hypot(path[:, 0] - r['x'], path[:, 1] - r['y']).min()
+            assert d < 1.5, f'region at ({r["x"]:.1f}, {r["y"]:.1f}) is {d:.1f} m from every target'
+            found += 1
+    assert found >= len(frames)  # on average a target or more per frame
+
+
 def test_bad_input_is_dropped_with_a_reason_and_the_node_keeps_running(ros, launch):
     from sensor_msgs.msg import Image, LaserScan
 

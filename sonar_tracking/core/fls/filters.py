@@ -176,6 +176,8 @@ class PolarSweepFilter:
         self._has = np.zeros(self._n, bool)
         self._bearing = np.zeros(self._n)
         self._pose = np.zeros((self._n, 3))
+        self._owner = np.full(self._n, -2, np.int64)  # which sector each beam came from
+        self._count = 0
 
     def add(self, amplitudes: np.ndarray, geometry: SectorGeometry,
             pose: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> list[FilteredBlock]:
@@ -191,6 +193,8 @@ class PolarSweepFilter:
         self._has[slots] = True
         self._bearing[slots] = g.bearings()
         self._pose[slots] = pose
+        self._owner[slots] = self._count
+        self._count += 1
         hw = c.window_beams // 2
         if c.normalise:
             # The median over at most ~100 beams per bin is as good a level and much cheaper.
@@ -208,7 +212,9 @@ class PolarSweepFilter:
         block = self._raw[:, idx_in] / self.level[:, None]
         filtered = trimmed_mean(block, c.window_bins, c.window_beams, c.trim)
         out_slots = idx_in[out_cols]
-        keep = self._has[out_slots]
+        # Paint this sector's beams and those of the sector just before whose window now holds
+        # new beams; not older ones (the previous pass, maybe taken elsewhere by a moving sonar).
+        keep = self._has[out_slots] & (self._owner[out_slots] >= self._count - 2)
         out_cols, out_slots = out_cols[keep], out_slots[keep]
         # Consecutive output beams taken at one pose are painted together (a static sonar: always).
         poses = self._pose[out_slots]

@@ -89,6 +89,23 @@ def test_sector_by_sector_filtering_equals_filtering_the_whole_sweep():
     assert np.allclose(latest[:, :-2], want[:, :-2], rtol=1e-5)
 
 
+def test_only_this_and_the_previous_sector_are_painted():
+    """Beams of an earlier pass next to a new sector are not painted again: on a moving platform
+    they were taken elsewhere, and their pixels belong to that time."""
+    _, sectors = sweep()
+    f = PolarSweepFilter(FilterConfig())
+    for k, (a, g) in enumerate(sectors):  # first pass at x = 0
+        f.add(a, g, (0.0, 0.0, 0.0))
+    poses = set()
+    for k, (a, g) in enumerate(reversed(sectors[3:6])):  # back over them, 10 m on
+        blocks = f.add(a, g, (10.0 + k, 0.0, 0.0))
+        poses |= {b.pose for b in blocks}
+        # Only this sector's beams, and the edge beam of the one before it.
+        assert sum(b.geometry.n_beams for b in blocks) <= g.n_beams + 1
+    # The first pass (at x = 0) is never painted again.
+    assert poses == {(10.0, 0.0, 0.0), (11.0, 0.0, 0.0), (12.0, 0.0, 0.0)}
+
+
 def test_filter_normalises_by_range_and_restarts_on_a_new_geometry():
     full, sectors = sweep(bins=200)
     f = PolarSweepFilter(FilterConfig())
