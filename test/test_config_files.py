@@ -7,6 +7,7 @@ import pytest
 import yaml
 
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
+from sonar_tracking.nodes.fls_features import FlsNodeConfig
 from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
 from sonar_tracking.nodes.seaking_sim import SimNodeConfig
 
@@ -22,11 +23,16 @@ NODES = {
     'seaking_sim': (SimNodeConfig, sim_config),
     'active_detector': (DetectorNodeConfig, DetectorNodeConfig.from_flat),
     'imm_ipda_tracker': (TrackerNodeConfig, TrackerNodeConfig.from_flat),
+    'fls_features': (FlsNodeConfig, FlsNodeConfig.from_flat),
 }
 
 
-@pytest.mark.parametrize('path', sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'desired_density.yaml'),
-                         ids=lambda p: p.name)
+def parameter_files():
+    """ROS parameter files: every YAML in config/ but tables and stack files."""
+    return sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'desired_density.yaml' and not p.name.startswith('stack_'))
+
+
+@pytest.mark.parametrize('path', parameter_files(), ids=lambda p: p.name)
 def test_parameter_file_is_valid(path):
     data = yaml.safe_load(path.read_text())
     assert isinstance(data, dict) and data, f'{path.name} is empty'
@@ -39,3 +45,10 @@ def test_parameter_file_is_valid(path):
         flat = build(dict(params)).flat()
         for name, value in params.items():
             assert flat[name] == (tuple(value) if isinstance(value, list) else value), name
+
+
+@pytest.mark.parametrize('path', sorted(CONFIG.glob('stack_*.yaml')), ids=lambda p: p.name)
+def test_stack_file_is_valid(path):
+    from sonar_tracking.tools.sonar_stack import load_stack
+    stack = load_stack(path)
+    assert stack.nodes and all(n.params_file is None or n.params_file.exists() for n in stack.nodes)

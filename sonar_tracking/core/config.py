@@ -11,6 +11,7 @@ each parameter is declared in exactly one place. Nested configs flatten to dotte
 """
 from __future__ import annotations
 
+import array
 import dataclasses
 import math
 import typing
@@ -96,6 +97,9 @@ def _coerce(s: Setting, value: Any) -> Any:
         if isinstance(value, str):
             return value
     elif t in (tuple, tuple[float, ...]):
+        # Array parameters set at run time arrive from rclpy as array.array('d').
+        if isinstance(value, array.array):
+            value = value.tolist()
         if isinstance(value, (list, tuple)) and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
             return tuple(float(v) for v in value)

@@ -6,6 +6,7 @@ Subcommands:
   scenario1        ESC paper Scenario 1 (§5.1): ESC against fixed thresholds, Monte Carlo
   scenario2        ESC paper Scenario 2 (§5.2): manoeuvring target, two clutter regions
   desired-density  ESC paper Algorithm 1 (§4): the desired clutter density for an SNR
+  select-features  FLS paper §3: GRNN feature selection by SFS or SBS on simulated tank regions
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ __all__ = ['main', 'build_parser']
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand (their modules load only when run)."""
-    from . import bench, esc_eval, track_csv
+    from . import bench, esc_eval, select_features, track_csv
     parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].replace('``', ''),
                                      epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -36,6 +37,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('desired-density', help='ESC paper Algorithm 1: rho_D for each SNR, and the table')
     esc_eval.add_desired_density_arguments(p)
     p.set_defaults(handler=esc_eval.main_desired_density)
+    p = sub.add_parser('select-features', help='FLS paper §3: GRNN feature selection by SFS or SBS on simulated '
+                       'tank regions')
+    select_features.add_arguments(p)
+    p.set_defaults(handler=select_features.main_args)
     return parser
 
 

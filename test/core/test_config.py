@@ -63,3 +63,10 @@ def test_bounds_text():
     assert s['inner.gain'].bounds_text() == '[0, 1)'
     assert s['count'].bounds_text() == '[1, inf)'
     assert s['inner.mode'].bounds_text() == 'one of a, b'
+
+
+def test_array_parameters_from_rclpy_are_accepted():
+    """rclpy hands a double-array parameter set at run time over as array.array('d')."""
+    import array
+    c = Outer.from_flat({'limits': array.array('d', [0.5, 3.0])})
+    assert c.limits == (0.5, 3.0)
