@@ -50,8 +50,9 @@ class SimNodeConfig(SimConfig):
     publish_clock: bool = setting(False, 'publish /clock with the simulation time (for use_sim_time)',
                                   read_only=True)
     shutdown_when_done: bool = setting(False, 'exit once the scenario has ended', read_only=True)
-    wait_for_subscribers: int = setting(0, 'start only once this many subscribers listen to each of /sonar/sector, '
-                                        '/sonar/sector_info and /sonar/truth', low=0, high=1000, read_only=True)
+    wait_for_subscribers: int = setting(0, 'start once /sonar/sector and /sonar/sector_info have this many '
+                                        'subscribers and every subscriber in the graph is connected (0 = at once)',
+                                        low=0, high=1000, read_only=True)
 
 
 class SeaKingSimNode(Node):
@@ -83,6 +84,8 @@ class SeaKingSimNode(Node):
 
         self.canvas = self._make_canvas()
         self.sectors = 0
+        self._matched_since: float | None = None
+        self._connected_since: float | None = None
         self._anchor()
         self.timer = self.create_timer(0.0 if self.config.rate == 0 else 0.005, self._tick)
 
@@ -114,10 +117,34 @@ class SeaKingSimNode(Node):
         self.config = new
         self._anchor()
 
+    def _ready(self) -> bool:
+        """Whether the first sector may go out (``wait_for_subscribers``).
+
+        Enough subscribers on the sector pair, and then, for half a second without a change, every
+        subscriber the graph knows of on our topics connected to our publishers: discovery of the
+        other processes settles first, so nobody misses the start at full speed. After 3 s the
+        second condition is given up (a subscriber of incompatible QoS never connects).
+        """
+        n = self.config.wait_for_subscribers
+        if n == 0:
+            return True
+        now = time.monotonic()
+        if min(self.pub_sector.get_subscription_count(), self.pub_info.get_subscription_count()) < n:
+            self._matched_since = self._connected_since = None
+            return False
+        self._matched_since = self._matched_since or now
+        pubs = (self.pub_sector, self.pub_info, self.pub_truth, self.pub_odom)
+        if all(p.get_subscription_count() >= self.count_subscribers(p.topic_name) for p in pubs):
+            self._connected_since = self._connected_since or now
+        else:
+            self._connected_since = None
+        settled = self._connected_since is not None and now - self._connected_since >= 0.5
+        return settled or now - self._matched_since > 3.0
+
     def _tick(self) -> None:
-        if self.sectors == 0 and min(p.get_subscription_count() for p in (
-                self.pub_sector, self.pub_info, self.pub_truth)) < self.config.wait_for_subscribers:
+        if self.sectors == 0 and not self._ready():
             self._anchor()
+            time.sleep(0.01)  # a zero-period timer would spin the CPU while we wait
             return
         rate = self.config.rate
         if rate == 0:

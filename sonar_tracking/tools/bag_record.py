@@ -7,6 +7,10 @@ recorded as ``offered_qos_profiles``, so a replay offers the same QoS. Messages 
 their receive time (the node clock, so ``use_sim_time`` works). The metadata is version 8, which
 ROS 2 Jazzy's ``ros2 bag info`` reads. Without topics, every topic that appears is recorded.
 Ctrl-C or SIGTERM closes the bag cleanly.
+
+The package's own topics (DESIGN §4) have known types, so they are subscribed at once, before any
+publisher exists (reliable, volatile): a recorder started first misses nothing of a pipeline started
+after it. Their bag connection, with the publishers' QoS, is made at the first message.
 """
 from __future__ import annotations
 
@@ -19,6 +23,18 @@ from pathlib import Path
 __all__ = ['main', 'BagRecorder']
 
 _EXCLUDED = {'/rosout', '/parameter_events'}
+
+#: Types of the package's topics (DESIGN §4), subscribed before their publishers appear.
+PACKAGE_TOPICS = {
+    '/sonar/sector': 'sensor_msgs/msg/Image', '/sonar/sector_info': 'sensor_msgs/msg/LaserScan',
+    '/sonar/fan': 'sensor_msgs/msg/Image', '/sonar/truth': 'sensor_msgs/msg/PointCloud2',
+    '/platform/odometry': 'nav_msgs/msg/Odometry', '/detections': 'sensor_msgs/msg/PointCloud2',
+    '/detector/threshold': 'std_msgs/msg/Float64', '/detector/clutter_density': 'std_msgs/msg/Float64',
+    '/tracks': 'sensor_msgs/msg/PointCloud2', '/tracks/markers': 'visualization_msgs/msg/MarkerArray',
+    '/fls/regions': 'sensor_msgs/msg/PointCloud2', '/fls/image': 'sensor_msgs/msg/Image',
+    '/gpf/tracks': 'sensor_msgs/msg/PointCloud2', '/gpf/tracks/markers': 'visualization_msgs/msg/MarkerArray',
+    '/diagnostics': 'diagnostic_msgs/msg/DiagnosticArray', '/clock': 'rosgraph_msgs/msg/Clock',
+}
 
 
 class BagRecorder:
@@ -36,10 +52,13 @@ class BagRecorder:
         self.wanted = set(topics)
         self.all = not topics
         self.depth = depth
-        self.connections: dict[str, object] = {}
+        self.types: dict[str, str] = {}          # topic -> type, once subscribed
+        self.connections: dict[str, object] = {}  # topic -> bag connection, from its first message
         self.counts: dict[str, int] = {}
         self.subscriptions = []
         self.closed = False
+        for topic in sorted(self.wanted & set(PACKAGE_TOPICS)):
+            self._subscribe(topic, PACKAGE_TOPICS[topic], None)
         self.discover()
         self.timer = node.create_timer(0.5, self.discover)
 
@@ -47,31 +66,40 @@ class BagRecorder:
         """Subscribe to wanted topics that now have publishers."""
         from .bags import qos_from_rclpy
         for topic, types in self.node.get_topic_names_and_types():
-            if topic in self.connections or topic in _EXCLUDED or not (self.all or topic in self.wanted):
+            if topic in self.types or topic in _EXCLUDED or not (self.all or topic in self.wanted):
                 continue
             infos = self.node.get_publishers_info_by_topic(topic)
-            if not infos:
-                continue
-            msgtype = types[0]
-            try:
-                cls = self._message_class(msgtype)
-            except (ImportError, AttributeError, ValueError) as exc:
-                self.node.get_logger().warning(f'{topic}: type {msgtype} not importable ({exc}); not recorded')
-                self.connections[topic] = None
-                continue
-            offered = [qos_from_rclpy(i.qos_profile) for i in infos]
-            with self.lock:
-                self.connections[topic] = self.writer.add_connection(
-                    topic, msgtype, typestore=self.typestore, offered_qos_profiles=offered)
-                self.counts[topic] = 0
-            self.subscriptions.append(self.node.create_subscription(
-                cls, topic, lambda data, t=topic: self._write(t, data), self._qos(offered), raw=True))
-            self.node.get_logger().info(f'recording {topic} [{msgtype}]')
+            if infos:
+                self._subscribe(topic, types[0], [qos_from_rclpy(i.qos_profile) for i in infos])
+
+    def _subscribe(self, topic: str, msgtype: str, offered: list | None) -> None:
+        try:
+            cls = self._message_class(msgtype)
+        except (ImportError, AttributeError, ValueError) as exc:
+            self.node.get_logger().warning(f'{topic}: type {msgtype} not importable ({exc}); not recorded')
+            self.types[topic] = msgtype
+            return
+        self.types[topic] = msgtype
+        self.counts[topic] = 0
+        self.subscriptions.append(self.node.create_subscription(
+            cls, topic, lambda data, t=topic: self._write(t, data), self._qos(offered or []), raw=True))
+        self.node.get_logger().info(f'recording {topic} [{msgtype}]')
+
+    def _connection(self, topic: str):
+        """The bag connection of a topic, made at its first message with its publishers' QoS."""
+        from .bags import qos_from_rclpy
+        conn = self.connections.get(topic)
+        if conn is None:
+            offered = [qos_from_rclpy(i.qos_profile) for i in self.node.get_publishers_info_by_topic(topic)]
+            conn = self.connections[topic] = self.writer.add_connection(
+                topic, self.types[topic], typestore=self.typestore, offered_qos_profiles=offered)
+        return conn
 
     def _qos(self, offered):
         from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+        # Unknown publishers (a package topic subscribed early): reliable and volatile.
         reliable = all(q.reliability.name == 'RELIABLE' for q in offered)
-        transient = all(q.durability.name == 'TRANSIENT_LOCAL' for q in offered)
+        transient = bool(offered) and all(q.durability.name == 'TRANSIENT_LOCAL' for q in offered)
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=self.depth,
                           reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
                           durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE)
@@ -86,7 +114,7 @@ class BagRecorder:
         with self.lock:
             if self.closed:
                 return
-            self.writer.write(self.connections[topic], stamp, data)
+            self.writer.write(self._connection(topic), stamp, data)
             self.counts[topic] += 1
 
     def close(self) -> dict[str, int]:

@@ -15,15 +15,19 @@ exit status is 0 if that node exited cleanly, 1 otherwise), ``restart`` it (up t
         parameters: {rate: 1.0}
         remappings: {/sonar/fan: /harbour/fan}
         on_exit: stop
+        wait_for: {/sonar/sector: 1, /detections: 1}   # start once these have that many subscribers
       active_detector:
         params_file: active_detector.yaml     # executable defaults to the node's key
     record:
       topics: [/sonar/sector, /sonar/sector_info, /detections, /tracks]
 
+Nodes start in file order; one with ``wait_for`` starts only once each named topic has at least
+that many subscribers (so a simulator running at full speed starts after the pipeline listens).
 Every child's output is printed line by line prefixed with its name. Ctrl-C or SIGTERM sends
 SIGINT to every child and waits up to 5 s in all before killing what is left; children also get
 SIGTERM from the kernel if the stack itself dies (Linux ``PR_SET_PDEATHSIG``), so none is left
-behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none).
+behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none),
+started first; nodes with ``wait_for`` then also wait for the recorder to listen.
 """
 from __future__ import annotations
 
@@ -61,6 +65,7 @@ class NodeSpec:
     remappings: dict = field(default_factory=dict)
     on_exit: str = 'stop'
     extra_args: list = field(default_factory=list)
+    wait_for: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -108,7 +113,7 @@ def load_stack(path: Path) -> StackConfig:
         spec = spec or {}
         if not isinstance(spec, dict):
             raise StackError(f'{path}: node {name} must be a mapping')
-        unknown = set(spec) - {'executable', 'params_file', 'parameters', 'remappings', 'on_exit', 'args'}
+        unknown = set(spec) - {'executable', 'params_file', 'parameters', 'remappings', 'on_exit', 'args', 'wait_for'}
         if unknown:
             raise StackError(f'{path}: node {name} has unknown keys {sorted(unknown)}')
         exe = spec.get('executable', name)
@@ -117,11 +122,14 @@ def load_stack(path: Path) -> StackConfig:
         on_exit = spec.get('on_exit', default_exit)
         if on_exit not in _ON_EXIT:
             raise StackError(f'{path}: node {name}: on_exit must be one of {list(_ON_EXIT)}, not {on_exit!r}')
+        wait_for = spec.get('wait_for') or {}
+        if not isinstance(wait_for, dict) or not all(isinstance(v, int) and v >= 0 for v in wait_for.values()):
+            raise StackError(f'{path}: node {name}: wait_for must map topics to subscriber counts')
         nodes.append(NodeSpec(name=name, executable=exe,
                               params_file=_resolve(spec['params_file'], path.parent) if spec.get('params_file') else None,
                               parameters=dict(spec.get('parameters') or {}),
                               remappings=dict(spec.get('remappings') or {}), on_exit=on_exit,
-                              extra_args=[str(a) for a in spec.get('args') or []]))
+                              extra_args=[str(a) for a in spec.get('args') or []], wait_for=dict(wait_for)))
     record = data.get('record') or {}
     return StackConfig(nodes=nodes, max_restarts=int(data.get('max_restarts', 3)),
                        record_topics=list(record.get('topics') or []), stop_delay=float(data.get('stop_delay', 1.0)))
@@ -170,6 +178,27 @@ class Child:
                 pass
 
 
+class _GraphProbe:
+    """A small rclpy node of the stack's own, to count subscribers for ``wait_for``."""
+
+    def __init__(self) -> None:
+        from sonar_tracking.nodes._runtime import configure_dds
+        configure_dds()
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.signals import SignalHandlerOptions
+        self.context = Context()
+        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node('sonar_stack', context=self.context)
+
+    def ready(self, wait_for: dict) -> bool:
+        return all(self.node.count_subscribers(topic) >= n for topic, n in wait_for.items())
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
 def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0) -> int:
     """Start the children, watch them, stop them; returns the stack's exit status."""
     lock = threading.Lock()
@@ -183,12 +212,29 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0)
     signal.signal(signal.SIGTERM, lambda *a: stop.set())
     specs = list(config.nodes)
     if record_dir is not None:
-        specs.append(NodeSpec(name='bag_record', executable='bag_record', on_exit='stop',
-                              extra_args=['-o', str(record_dir), *config.record_topics]))
+        # The recorder starts first, and nodes that wait for listeners also wait for it.
+        recorder = NodeSpec(name='bag_record', executable='bag_record', on_exit='stop',
+                            extra_args=['-o', str(record_dir), *config.record_topics])
+        for spec in specs:
+            if spec.wait_for:
+                for topic in config.record_topics:
+                    spec.wait_for[topic] = spec.wait_for.get(topic, 0) + 1
+        specs.insert(0, recorder)
     children = []
-    for spec in specs:
-        children.append(Child(spec, lock))
-        say(f'started {spec.name} (pid {children[-1].proc.pid})')
+    graph = _GraphProbe() if any(s.wait_for for s in specs) else None
+    try:
+        for spec in specs:
+            if spec.wait_for:
+                say(f'{spec.name} waits for subscribers: ' + ', '.join(f'{t} >= {n}' for t, n in spec.wait_for.items()))
+                while not stop.is_set() and not graph.ready(spec.wait_for):
+                    time.sleep(0.05)
+                if stop.is_set():
+                    break
+            children.append(Child(spec, lock))
+            say(f'started {spec.name} (pid {children[-1].proc.pid})')
+    finally:
+        if graph is not None:
+            graph.close()
     status = 0
     gone: set[str] = set()
     while not stop.is_set():
