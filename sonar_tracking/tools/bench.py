@@ -6,7 +6,8 @@ off, as :mod:`timeit` does; the table reports the median time per call and its s
 75th percentile) over repeats. A case may name another as ``compare_to``: its ratio is the other
 case's median divided by its own, taken in the same run. ``limit_s`` is the target an issue set;
 the table says whether the median meets it. A ``self_timed`` case returns the seconds it measured
-itself (for work that spans processes, such as a node's throughput), and ``derived`` turns the
+itself (for work that spans processes, such as a node's throughput; a sequence of seconds counts
+as that many samples, such as message latencies), and ``derived`` turns the
 result into further figures shown beside it (such as "x real time"). Timing lives here and never
 in tests.
 """
@@ -90,8 +91,11 @@ def run_case(case: Case, repeats: int | None = None) -> Result:
     """Time one case."""
     fn = case.make()
     if case.self_timed:
-        t = np.asarray([float(fn()) for _ in range(repeats or case.repeats)])
-        return _result(case, t, 1)
+        samples: list[float] = []
+        for _ in range(repeats or case.repeats):
+            got = fn()
+            samples.extend(np.atleast_1d(np.asarray(got, dtype=float)).tolist())
+        return _result(case, np.asarray(samples), 1)
     fn()  # warm-up: imports, caches, first-call allocation
     number = 1
     while True:

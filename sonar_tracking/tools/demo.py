@@ -1,175 +1,169 @@
-"""``make demo``: the built-in harbour scenario through real ROS 2 nodes, and what came out.
+"""``make demo``: the harbour pipeline on the ESC paper's Scenario 2, through real ROS 2 nodes.
 
-Starts ``seaking_sim`` (ESC paper Scenario 2: a manoeuvring target crossing from clutter rate
-lam 1.6 into lam 0.8) as its own process at full speed, listens over DDS like any user's node,
-then prints a summary (scans, measured false-alarm and detection rates against ESC eqs. 15-16 at
-a reference threshold) and writes a PNG of the echoes, the true track and the clutter statistics.
+Runs ``sonar_stack --config config/stack_harbour.yaml --record out/demo_bag``: the simulated
+harbour sonar (a target manoeuvring from clutter rate lam 1.6 into lam 0.8 at scan 50), the ESC
+detector measuring the clutter density near the best track, and the IMM-IPDA tracker, each its own
+process over DDS, the simulator at full speed, everything recorded. It then reads the bag back and
+prints a summary (tracks confirmed, true and false by eqs. 47-48, RMSE, the threshold) and writes a
+PNG of the tracks on the truth and the threshold and clutter density over time.
 """
 from __future__ import annotations
 
 import argparse
 import math
-import os
-import signal
+import shutil
 import subprocess
 import sys
 import time
+from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 
-from sonar_tracking.core.fan import PolarCanvas, to_mono8
-from sonar_tracking.core.sim import SimConfig, Simulator, exponential_pd, exponential_pfa
-from sonar_tracking.nodes._runtime import configure_dds
+__all__ = ['main', 'read_run', 'summarise_run']
 
-__all__ = ['main']
+STACK = 'stack_harbour.yaml'
 
 
-def _collect(scenario: str, timeout: float) -> tuple[list, float]:
-    """Run the simulator node; return ``[(stamp_ns, amplitudes, geometry, truth), ...]`` and wall time."""
-    import rclpy
-    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-    from sensor_msgs.msg import Image, LaserScan, PointCloud2
+def read_run(bag: Path) -> dict:
+    """Truth, tracks, threshold and density per scan from a recorded run (stamps in seconds)."""
+    from rosbags.typesys import Stores, get_typestore
 
     import msg_adapters as ma
+    from .bags import bag_topics, read_bag
+    store = get_typestore(Stores.ROS2_JAZZY)
+    types = {t.name: t.msgtype for t in bag_topics(bag)}
+    truth, tracks, thresholds, densities = {}, {}, [], []
+    for m in read_bag(bag, ['/sonar/truth', '/tracks', '/detector/threshold', '/detector/clutter_density']):
+        msg = store.deserialize_cdr(m.data, types[m.topic])
+        if m.topic == '/sonar/truth':
+            truth[ma.header_ns(msg)] = np.array(ma.cloud_to_array(msg))
+        elif m.topic == '/tracks':
+            tracks[ma.header_ns(msg)] = np.array(ma.cloud_to_array(msg))
+        elif m.topic == '/detector/threshold':
+            thresholds.append(msg.data)
+        else:
+            densities.append(msg.data)
+    stamps = sorted(set(truth) & set(tracks))
+    return {'stamps': [s / 1e9 for s in stamps], 'truth': [truth[s] for s in stamps],
+            'tracks': [tracks[s] for s in stamps], 'threshold': thresholds, 'clutter_density': densities}
 
-    rclpy.init()
-    node = rclpy.create_node('sonar_demo')
-    qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
-    pairer, truths, scans = ma.SectorPairer(), {}, []
 
-    def on_pair(pair):
-        if pair is not None:
-            amps, geom = ma.sector_from_messages(pair.image, pair.info)
-            scans.append((pair.stamp_ns, np.array(amps), geom))
-
-    node.create_subscription(Image, '/sonar/sector', lambda m: on_pair(pairer.add_image(m)), qos)
-    node.create_subscription(LaserScan, '/sonar/sector_info', lambda m: on_pair(pairer.add_info(m)), qos)
-    node.create_subscription(PointCloud2, '/sonar/truth',
-                             lambda m: truths.__setitem__(ma.header_ns(m), np.array(ma.cloud_to_array(m))), qos)
-    cmd = [sys.executable, '-m', 'sonar_tracking.nodes.seaking_sim', '--ros-args', '-p', f'scenario:={scenario}',
-           '-p', 'rate:=0.0', '-p', 'wait_for_subscribers:=1', '-p', 'shutdown_when_done:=true']
-    print('$ seaking_sim --ros-args ' + ' '.join(cmd[cmd.index('--ros-args') + 1:]), flush=True)
-    child = subprocess.Popen(cmd, start_new_session=True)
-    t0, t_first = time.monotonic(), None
-    try:
-        idle_since = None
-        while time.monotonic() - t0 < timeout:
-            rclpy.spin_once(node, timeout_sec=0.05)
-            if scans and t_first is None:
-                t_first = time.monotonic()
-            if child.poll() is not None:
-                idle_since = idle_since or time.monotonic()
-                if time.monotonic() - idle_since > 1.0:
-                    break
-    finally:
-        if child.poll() is None:
-            os.killpg(child.pid, signal.SIGINT)
-            child.wait(10)
-        wall = time.monotonic() - (t_first or t0)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    out = [(s, a, g, truths.get(s)) for s, a, g in scans]
-    return out, wall
+def summarise_run(run: dict) -> dict:
+    """Eqs. 47-49 scan by scan; a confirmed track is true when most of its confirmed scans are CTT."""
+    from sonar_tracking.core.detection import convert_measurements
+    from sonar_tracking.core.eval.metrics import classify_tracks
+    from sonar_tracking.core.sim.presets import HARBOUR_SONAR_XY
+    from sonar_tracking.core.tracking import TrackerConfig
+    from sonar_tracking.core.tracking.management import initial_covariance
+    t0 = run['truth'][0][0]
+    r0 = math.hypot(t0['x'] - HARBOUR_SONAR_XY[0], t0['y'] - HARBOUR_SONAR_XY[1])
+    b0 = math.atan2(t0['y'] - HARBOUR_SONAR_XY[1], t0['x'] - HARBOUR_SONAR_XY[0])
+    _, R0 = convert_measurements(np.array([r0]), np.array([b0]), 5.0, math.radians(0.1))
+    P0 = initial_covariance(R0[0], TrackerConfig().init.speed_max)
+    votes: dict[int, list[int]] = defaultdict(list)
+    paths: dict[int, list] = defaultdict(list)
+    has_ctt, errors = [], []
+    for truth, tracks in zip(run['truth'], run['tracks']):
+        conf = tracks[tracks['confirmed'] != 0]
+        x = np.column_stack([truth[f] for f in ('x', 'y', 'vx', 'vy')])
+        est = np.column_stack([conf[f] for f in ('x', 'y', 'vx', 'vy')]) if len(conf) else np.zeros((0, 4))
+        cls = classify_tracks(x, est, P0)
+        for rec, label in zip(conf, cls.label):
+            votes[int(rec['track_id'])].append(int(label))
+            paths[int(rec['track_id'])].append((float(rec['x']), float(rec['y'])))
+        true_idx = np.flatnonzero(cls.label == 1)
+        has_ctt.append(len(true_idx) > 0)
+        if len(true_idx):
+            errors.append(min(math.hypot(est[i, 0] - x[0, 0], est[i, 1] - x[0, 1]) for i in true_idx))
+    true_ids = [i for i, v in votes.items() if v.count(1) > len(v) / 2]
+    false_ids = [i for i in votes if i not in true_ids]
+    return {'scans': len(run['stamps']), 'confirmed': len(votes), 'true': true_ids, 'false': false_ids,
+            'cttr': float(np.mean(has_ctt)) if has_ctt else 0.0,
+            'rmse': float(np.sqrt(np.mean(np.square(errors)))) if errors else math.nan,
+            'threshold_final': run['threshold'][-1] if run['threshold'] else math.nan, 'paths': paths}
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point (``make demo`` runs ``python -m sonar_tracking.tools.demo``)."""
     parser = argparse.ArgumentParser(prog='sonar_demo', description=__doc__.split('\n\n')[0])
-    parser.add_argument('--scenario', default='scenario2', choices=('scenario1', 'scenario2'))
     parser.add_argument('--out', type=Path, default=Path('out'))
-    parser.add_argument('--timeout', type=float, default=120.0)
-    parser.add_argument('--threshold', type=float, default=3.0, help='reference threshold for the rates')
+    parser.add_argument('--timeout', type=float, default=110.0)
     args = parser.parse_args(argv)
-    configure_dds()
-    scans, wall = _collect(args.scenario, args.timeout)
-    if not scans:
-        print('error: no sectors received from seaking_sim', file=sys.stderr)
+    from sonar_tracking.resources import config_path
+    bag = args.out / 'demo_bag'
+    if bag.exists():
+        shutil.rmtree(bag)
+    args.out.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, '-m', 'sonar_tracking.tools.sonar_stack', '--config', str(config_path(STACK)),
+           '--record', str(bag)]
+    print(f'$ sonar_stack --config config/{STACK} --record {bag}', flush=True)
+    t0 = time.monotonic()
+    try:
+        code = subprocess.run(cmd, timeout=args.timeout).returncode
+    except subprocess.TimeoutExpired:
+        print(f'error: the pipeline did not finish within {args.timeout:g} s', file=sys.stderr)
         return 1
-    config = SimConfig.for_scenario(args.scenario)
-    sim = Simulator(config, np.random.default_rng(0))  # for the clutter map and sonar pose only
-    sonar = sim.sensor
-    pose = sim.scene.platform_pose(0.0)[:3]
-    lam_cells = np.broadcast_to(sim.scene.lam_at(sonar.cell_centres(pose)), sonar.geometry.shape)
-    tau = args.threshold
-    g = sonar.geometry
-    clutter_hits = {}
-    target_hits = []
-    for _, amps, geom, truth in scans:
-        mask = np.ones(amps.shape, bool)
-        if truth is not None and len(truth):
-            for rec in truth:
-                dx, dy = rec['x'] - pose[0], rec['y'] - pose[1]
-                i = int(round((math.hypot(dx, dy) - g.range_min) / g.range_resolution))
-                j = int(round((math.atan2(dy, dx) - pose[2] - g.angle_min) / g.angle_increment))
-                if 0 <= i < g.n_bins and 0 <= j < g.n_beams:
-                    mask[i, j] = False
-                    target_hits.append((amps[i, j] > tau, lam_cells[i, j]))
-        for lam in np.unique(lam_cells):
-            sel = mask & (lam_cells == lam)
-            n, k = clutter_hits.get(lam, (0, 0))
-            clutter_hits[lam] = (n + int(sel.sum()), k + int((amps[sel] > tau).sum()))
-    sim_seconds = (scans[-1][0] - scans[0][0]) / 1e9 + config.harbour.scan_period
+    wall = time.monotonic() - t0
+    if code != 0 or not (bag / 'metadata.yaml').exists():
+        print(f'error: the pipeline failed (status {code})', file=sys.stderr)
+        return 1
+    run = read_run(bag)
+    if not run['stamps']:
+        print('error: the bag holds no scans with both truth and tracks', file=sys.stderr)
+        return 1
+    s = summarise_run(run)
     print()
-    print(f'seaking_sim, {config.scenario}: {len(scans)} scans of {g.n_bins} x {g.n_beams} cells received over DDS '
-          f'in {wall:.2f} s ({sim_seconds / max(wall, 1e-9):.0f}x real time)')
-    print(f'{"":28s}{"measured":>12s}{"expected":>12s}{"cells":>10s}')
-    for lam, (n, k) in sorted(clutter_hits.items()):
-        print(f'  P_fa, lam {lam:.1f}, tau {tau:g}     {k / n:12.5f}{float(exponential_pfa(lam, tau)):12.5f}{n:10d}')
-    for lam in sorted({lam for _, lam in target_hits}):
-        hits = [h for h, l_ in target_hits if l_ == lam]
-        print(f'  P_D, lam {lam:.1f}, {config.snr_db:g} dB      {np.mean(hits):12.3f}'
-              f'{float(exponential_pd(lam, tau, config.snr_db)):12.3f}{len(hits):10d}')
-    png = _plot(scans, sim, args, clutter_hits, tau)
-    print(f'\nwrote {png}')
+    print(f'Scenario 2 through seaking_sim -> active_detector -> imm_ipda_tracker: {s["scans"]} scans in {wall:.1f} s')
+    print(f'  confirmed tracks          {s["confirmed"]:>6d}')
+    print(f'    true (eqs. 47-48)       {len(s["true"]):>6d}   ids {s["true"]}')
+    print(f'    false                   {len(s["false"]):>6d}   ids {s["false"]}')
+    print(f'  scans with a true track   {s["cttr"]:>9.0%}')
+    print(f'  position RMSE (eq. 49)    {s["rmse"]:>8.2f} m')
+    print(f'  threshold: first {run["threshold"][0]:.2f}, scan 50 {run["threshold"][min(49, len(run["threshold"]) - 1)]:.2f}, '
+          f'final {s["threshold_final"]:.2f}')
+    png = _plot(run, s, args.out / 'demo_harbour.png')
+    print(f'\nbag: {bag}\nplot: {png.resolve()}')
     return 0
 
 
-def _plot(scans, sim: Simulator, args, clutter_hits, tau: float) -> Path:
+def _plot(run: dict, s: dict, path: Path) -> Path:
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
-
-    sonar = sim.sensor
-    pose = sim.scene.platform_pose(0.0)[:3]
-    xs, ys = sonar.cell_centres(pose)[..., 0], sonar.cell_centres(pose)[..., 1]
-    canvas = PolarCanvas(xs.min() - 50, xs.max() + 50, ys.min() - 50, ys.max() + 50, 5.0)
-    for _, amps, geom, _ in scans:
-        canvas.paint(amps, geom, pose, hold_max=True)
-    truth = np.array([(t['x'][0], t['y'][0]) for *_, t in scans if t is not None and len(t)])
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(13, 5.5))
-    extent = (canvas.y_max, canvas.y_max - canvas.width * canvas.resolution,
-              canvas.x_max - canvas.height * canvas.resolution, canvas.x_max)
-    ax1.imshow(to_mono8(canvas.image, 25.0), cmap='gray', extent=extent, aspect='equal')
-    if len(truth):
-        ax1.plot(truth[:, 1], truth[:, 0], 'r-', lw=1, label='true track')
-    for region in sim.scene.regions:
-        poly = region.polygon
-        ax1.fill(poly[:, 1], poly[:, 0], color='yellow', alpha=0.12, label=f'clutter lam {region.lam:g}')
-    ax1.set_xlim(extent[0], extent[1])
-    ax1.set_ylim(extent[2], extent[3])
-    ax1.set_xlabel('y [m] (left)')
-    ax1.set_ylabel('x [m] (forward)')
-    ax1.set_title(f'{sim.config.scenario}: strongest echo of every cell over {len(scans)} scans')
-    ax1.legend(loc='lower left')
-    amps = np.concatenate([a.ravel() for _, a, _, _ in scans])
-    s = np.linspace(0, 12, 300)
-    ax2.hist(amps, bins=150, range=(0, 12), density=True, alpha=0.5, label='all cells')
-    for lam in sorted(clutter_hits):
-        ax2.plot(s, lam * np.exp(-lam * s), label=f'eq. 15, lam {lam:g}')
-    ax2.axvline(tau, color='k', ls='--', label=f'tau {tau:g}')
-    ax2.set_yscale('log')
-    ax2.set_ylim(1e-5, 2)
-    ax2.set_xlabel('echo amplitude s')
-    ax2.set_ylabel('density')
-    ax2.set_title('cell amplitudes against the exponential law')
-    ax2.legend()
+    fig = plt.figure(figsize=(14, 6.5))
+    ax = fig.add_subplot(1, 2, 1)
+    truth = np.array([(t['x'][0], t['y'][0]) for t in run['truth']])
+    ax.plot(truth[:, 0], truth[:, 1], 'k-', lw=3, alpha=0.35, label='true track')
+    y50 = truth[min(49, len(truth) - 1), 1]
+    ax.axhspan(y50, truth[:, 1].max() + 300, color='gold', alpha=0.15, label='clutter lam 0.8 (else 1.6)')
+    for tid, pts in s['paths'].items():
+        p = np.array(pts)
+        style = '-' if tid in s['true'] else ':'
+        ax.plot(p[:, 0], p[:, 1], style, lw=1.5, label=f'T{tid} ({"true" if tid in s["true"] else "false"})')
+    ax.set_aspect('equal')
+    ax.set_xlabel('x [m]')
+    ax.set_ylabel('y [m]')
+    ax.set_title('confirmed IMM-IPDA tracks on the truth (Scenario 2)')
+    ax.legend(fontsize=8, loc='lower right')
+    scans = np.arange(1, len(run['threshold']) + 1)
+    ax2 = fig.add_subplot(2, 2, 2)
+    ax2.plot(scans, run['threshold'], 'r-')
+    ax2.axvline(50, color='gold', ls='--')
+    ax2.set_ylabel('threshold')
+    ax2.set_title('ESC threshold (density measured near the best track)')
+    ax3 = fig.add_subplot(2, 2, 4, sharex=ax2)
+    ax3.semilogy(scans[:len(run['clutter_density'])], np.maximum(run['clutter_density'], 1e-9), 'b-',
+                 label='estimated')
+    ax3.axhline(7.52e-5, color='k', ls='--', label='rho_D')
+    ax3.axvline(50, color='gold', ls='--')
+    ax3.set_xlabel('scan')
+    ax3.set_ylabel('clutter density [1/m^2]')
+    ax3.legend(fontsize=8)
     fig.tight_layout()
-    args.out.mkdir(parents=True, exist_ok=True)
-    png = (args.out / f'demo_{sim.config.scenario}.png').resolve()
-    fig.savefig(png, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
-    return png
+    return path
 
 
 if __name__ == '__main__':
