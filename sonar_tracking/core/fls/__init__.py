@@ -7,6 +7,7 @@ from .image import ImageBuilder, ImageConfig, canvas_for, grid_image
 from .pipeline import FlsConfig, FlsFrame, FlsInputError, FlsProcessor, check_sector, regions_to_records
 from .segmentation import SegmentConfig, cells_per_pixel, grow_regions, threshold_components
 from .sweep import SweepTracker
+from .windows import WindowImage, window_features
 
 #: The features the paper selects by SFS (Table 7), in the order found: M7, M4, mean intensity,
 #: background mean, inverse difference moment. The GPF tracker's default feature set.
@@ -16,4 +17,4 @@ __all__ = ['PAPER_FEATURES', 'FEATURE_LABELS', 'FeatureConfig', 'N_FEATURES', 'p
            'FilterConfig', 'PolarSweepFilter', 'median_blur', 'trimmed_mean', 'ImageGrid', 'ImageBuilder',
            'ImageConfig', 'canvas_for', 'grid_image', 'FlsConfig', 'FlsFrame', 'FlsInputError', 'FlsProcessor',
            'check_sector', 'regions_to_records', 'SegmentConfig', 'cells_per_pixel', 'grow_regions',
-           'threshold_components', 'SweepTracker']
+           'threshold_components', 'SweepTracker', 'WindowImage', 'window_features']

@@ -166,8 +166,13 @@ def _box_pixels(r0: np.ndarray, r1: np.ndarray, c0: np.ndarray, c1: np.ndarray, 
     return owner, (r0[owner] + local // wk) * width + c0[owner] + local % wk
 
 
-def glcm_features(h: np.ndarray) -> np.ndarray:
-    """Table 2 features 21-30 of co-occurrence matrices ``(n, S, S)`` (normalised here): ``(n, 10)``."""
+def glcm_features(h: np.ndarray, features=None) -> np.ndarray:
+    """Table 2 features 21-30 of co-occurrence matrices ``(n, S, S)`` (normalised here): ``(n, 10)``,
+    or with ``features`` (Table 2 numbers within 21-30) ``(n, len(features))``, computing only those."""
+    wanted = list(range(21, 31)) if features is None else [int(f) for f in features]
+    if not wanted or any(not 21 <= f <= 30 for f in wanted):
+        raise ValueError(f'GLCM features {wanted} must be Table 2 numbers 21..30')
+    need = set(wanted)
     h = np.asarray(h, dtype=np.float64)
     total = h.sum(axis=(1, 2), keepdims=True)
     h = h / np.where(total > 0, total, 1.0)
@@ -175,38 +180,51 @@ def glcm_features(h: np.ndarray) -> np.ndarray:
     i = np.arange(s, dtype=np.float64)[:, None]
     j = np.arange(s, dtype=np.float64)[None, :]
     d2 = (i - j) ** 2
+    out = {}
 
     def entropy(p: np.ndarray, axes) -> np.ndarray:
         return -np.sum(np.where(p > 0, p * np.log(np.where(p > 0, p, 1.0)), 0.0), axis=axes)
 
-    inertia = np.sum(d2 * h, axis=(1, 2))
-    ent = entropy(h, (1, 2))
-    asm = np.sum(h * h, axis=(1, 2))
-    idm = np.sum(h / (1.0 + d2), axis=(1, 2))
-    px, py = h.sum(axis=2), h.sum(axis=1)
-    lv = np.arange(s, dtype=np.float64)
-    mux, muy = px @ lv, py @ lv
-    varx = px @ (lv ** 2) - mux ** 2
-    vary = py @ (lv ** 2) - muy ** 2
-    cov = np.einsum('kij,i,j->k', h, lv, lv) - mux * muy
-    sd = np.sqrt(np.clip(varx, 0, None) * np.clip(vary, 0, None))
-    corr = np.where(sd > 1e-15, cov / np.where(sd > 1e-15, sd, 1.0), 1.0)
-    variance = np.einsum('kij,ki->k', h, (lv[None, :] - mux[:, None]) ** 2)
+    if 21 in need:
+        out[21] = np.sum(d2 * h, axis=(1, 2))                    # inertia
+    if 22 in need:
+        out[22] = entropy(h, (1, 2))
+    if 23 in need:
+        out[23] = np.sum(h * h, axis=(1, 2))                      # angular second moment
+    if 24 in need:
+        out[24] = np.sum(h / (1.0 + d2), axis=(1, 2))             # inverse difference moment
+    if need & {25, 26}:
+        px, py = h.sum(axis=2), h.sum(axis=1)
+        lv = np.arange(s, dtype=np.float64)
+        mux, muy = px @ lv, py @ lv
+        if 25 in need:
+            varx = px @ (lv ** 2) - mux ** 2
+            vary = py @ (lv ** 2) - muy ** 2
+            cov = np.einsum('kij,i,j->k', h, lv, lv) - mux * muy
+            sd = np.sqrt(np.clip(varx, 0, None) * np.clip(vary, 0, None))
+            out[25] = np.where(sd > 1e-15, cov / np.where(sd > 1e-15, sd, 1.0), 1.0)
+        if 26 in need:
+            out[26] = np.einsum('kij,ki->k', h, (lv[None, :] - mux[:, None]) ** 2)
     # Sum and difference distributions: k = (i+1) + (j+1) = 2..2S, and |i - j| = 0..S-1.
     # p_{x+y} and p_{x-y} by summing h over the anti-diagonals and the |i - j| bands (0/1 matrices).
     cells = np.arange(s * s)
-    to_sum = np.zeros((s * s, 2 * s - 1))
-    to_sum[cells, (i + j).astype(np.int64).ravel()] = 1.0
-    to_dif = np.zeros((s * s, s))
-    to_dif[cells, np.abs(i - j).astype(np.int64).ravel()] = 1.0
     flat = h.reshape(h.shape[0], -1)
-    psum, pdif = flat @ to_sum, flat @ to_dif
-    k = np.arange(2, 2 * s + 1, dtype=np.float64)
-    sum_avg = psum @ k
-    sum_ent = entropy(psum, 1)
-    sum_var = np.sum((k[None, :] - sum_avg[:, None]) ** 2 * psum, axis=1)
-    dif_ent = entropy(pdif, 1)
-    return np.stack([inertia, ent, asm, idm, corr, variance, sum_avg, sum_ent, sum_var, dif_ent], axis=1)
+    if need & {27, 28, 29}:
+        to_sum = np.zeros((s * s, 2 * s - 1))
+        to_sum[cells, (i + j).astype(np.int64).ravel()] = 1.0
+        psum = flat @ to_sum
+        k = np.arange(2, 2 * s + 1, dtype=np.float64)
+        sum_avg = psum @ k
+        out[27] = sum_avg
+        if 28 in need:
+            out[28] = entropy(psum, 1)
+        if 29 in need:
+            out[29] = np.sum((k[None, :] - sum_avg[:, None]) ** 2 * psum, axis=1)
+    if 30 in need:
+        to_dif = np.zeros((s * s, s))
+        to_dif[cells, np.abs(i - j).astype(np.int64).ravel()] = 1.0
+        out[30] = entropy(flat @ to_dif, 1)
+    return np.stack([out[f] for f in wanted], axis=1)
 
 
 _GROUPS = {  # feature numbers -> the group of computations they need
@@ -363,7 +381,8 @@ def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
             np.minimum.at(first, own, np.arange(own.size))  # each region's first pixel
             ql = levels.ravel()[idx[first[1:][lonely]]]
             h[np.flatnonzero(lonely), ql, ql] = 1.0
-        out[:, 21:31] = glcm_features(h)
+        cols = sorted(set(wanted) & _GROUPS['glcm'])
+        out[:, cols] = glcm_features(h, cols)
 
     out[~present] = np.nan
     return out[:, wanted]
