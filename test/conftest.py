@@ -5,9 +5,12 @@ import os
 
 import pytest
 
-# Before any rclpy import: a per-run domain so parallel runs on one machine do not see each other.
+# Before any rclpy import: a per-run domain so parallel runs on one machine do not see each other,
+# and the package's DDS profile, as every process of the package uses it.
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+from sonar_tracking.nodes._runtime import configure_dds  # noqa: E402 (must precede rclpy)
+configure_dds()
 
 
 @pytest.fixture(scope='session')

@@ -53,6 +53,9 @@ class SimNodeConfig(SimConfig):
     wait_for_subscribers: int = setting(0, 'start once /sonar/sector and /sonar/sector_info have this many '
                                         'subscribers and every subscriber in the graph is connected (0 = at once)',
                                         low=0, high=1000, read_only=True)
+    start_settle_time: float = setting(1.0, 'with wait_for_subscribers: how long the graph must stay connected '
+                                       'before the start (3.5 s for subscribers of tools that announce every 3 s)',
+                                       unit='s', low=0.0, high=60.0, read_only=True)
 
 
 class SeaKingSimNode(Node):
@@ -120,10 +123,11 @@ class SeaKingSimNode(Node):
     def _ready(self) -> bool:
         """Whether the first sector may go out (``wait_for_subscribers``).
 
-        Enough subscribers on the sector pair, and then, for half a second without a change, every
-        subscriber the graph knows of on our topics connected to our publishers: discovery of the
-        other processes settles first, so nobody misses the start at full speed. After 3 s the
-        second condition is given up (a subscriber of incompatible QoS never connects).
+        Enough subscribers on the sector pair, and then, for ``start_settle_time`` without a change,
+        every subscriber the graph knows of on our topics connected to our publishers: discovery of
+        the other processes (announced every 250 ms with the package's DDS profile) settles first,
+        so nobody misses the start at full speed. Three seconds later the second condition is given
+        up (a subscriber of incompatible QoS never connects).
         """
         n = self.config.wait_for_subscribers
         if n == 0:
@@ -138,14 +142,20 @@ class SeaKingSimNode(Node):
             self._connected_since = self._connected_since or now
         else:
             self._connected_since = None
-        settled = self._connected_since is not None and now - self._connected_since >= 0.5
-        return settled or now - self._matched_since > 3.0
+        settle = self.config.start_settle_time
+        settled = self._connected_since is not None and now - self._connected_since >= settle
+        return settled or now - self._matched_since > settle + 3.0
 
     def _tick(self) -> None:
-        if self.sectors == 0 and not self._ready():
-            self._anchor()
-            time.sleep(0.01)  # a zero-period timer would spin the CPU while we wait
-            return
+        if self.sectors == 0:
+            if not self._ready():
+                self._anchor()
+                time.sleep(0.01)  # a zero-period timer would spin the CPU while we wait
+                return
+            if self.config.wait_for_subscribers:
+                counts = ', '.join(f'{p.topic_name} {p.get_subscription_count()}' for p in (
+                    self.pub_sector, self.pub_info, self.pub_truth, self.pub_odom))
+                self.get_logger().info(f'starting; subscribers: {counts}')
         rate = self.config.rate
         if rate == 0:
             self._publish_next()
