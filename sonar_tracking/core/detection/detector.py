@@ -8,9 +8,13 @@ For each sector (one scan of the harbour sonar):
    ``sigma_theta``; left at 0 they are the standard deviation of a position uniform in one
    resolution cell, ``cell / (2 sqrt 3)``, which is the harbour sonar's measurement noise;
 3. each detection gets its clutter density by SCMDE (:mod:`.scmde`) over the sector window;
-4. the ESC (:mod:`.esc`) takes the mean density -- over the whole sector, or (``esc.density_source
-   = best_track``, Scenario 2) over the ``esc.local_count`` detections nearest the track with the
-   highest existence probability -- and sets the threshold of the next scan.
+4. the ESC (:mod:`.esc`) takes the scan's density -- the mean SCMDE density over the whole
+   sector, or (``esc.density_source = best_track``, Scenario 2) the density around the confirmed
+   track with the highest existence probability -- and sets the threshold of the next scan.
+   Around the track, the density is the number of detections within ``esc.local_radius`` divided
+   by the area of that disc inside the sector: an average of the detections' own SCMDE values
+   would be dominated by a denser neighbouring region (it has more detections, each with a high
+   density) and keep the threshold high in the sparse region the track is in.
 
 The threshold is one number per scan, as in the paper. Each sector is taken as one scan; for a
 SeaKing that publishes a sweep in several sectors, ESC would update once per sector.
@@ -29,12 +33,13 @@ from ..sector import SectorGeometry
 from .cells import threshold_cells
 from .conversion import convert_measurements
 from .esc import ExtremumSeekingController
-from .scmde import PolarWindow, scmde
+from .scmde import PolarWindow, scmde, sunflower
 
 __all__ = ['ThresholdConfig', 'CellConfig', 'ScmdeConfig', 'EscConfig', 'DetectorConfig', 'ActiveDetector',
            'ScanResult', 'DetectionInputError']
 
 _SQRT12 = 2.0 * math.sqrt(3.0)
+_DISC = sunflower(256)
 
 
 class DetectionInputError(ValueError):
@@ -92,7 +97,8 @@ class EscConfig(Config):
                           low=0.0, low_open=True, high=10.0)
     density_source: str = setting('sector', "ESC input: mean density of the 'sector' or near the 'best_track'",
                                   choices=('sector', 'best_track'))
-    local_count: int = setting(10, 'detections nearest the best track averaged for best_track', low=1, high=10000)
+    local_radius: float = setting(200.0, 'best_track: the density is measured in a disc of this radius around the '
+                                  'track', unit='m', low=0.0, low_open=True, high=1e5)
 
 
 @dataclass(frozen=True)
@@ -193,7 +199,7 @@ class ActiveDetector:
                              geometry.angle_max + geometry.angle_increment / 2)
         sensor_xy = np.stack([r * np.cos(b), r * np.sin(b)], axis=-1)
         rho = scmde(sensor_xy, cfg.scmde.order, window if cfg.scmde.edge_correction else None)
-        density = self._esc_input(xy, rho, focus_xy)
+        density = self._esc_input(xy, rho, focus_xy, pose, window)
         self.last_density = density
         self.scans += 1
         if self.enabled:
@@ -205,12 +211,16 @@ class ActiveDetector:
         rec['cov_xx'], rec['cov_xy'], rec['cov_yy'] = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
         return ScanResult(rec, tau, density, self.threshold)
 
-    def _esc_input(self, xy: np.ndarray, rho: np.ndarray, focus_xy) -> float:
-        if len(rho) == 0:
-            return 0.0
-        if self.config.esc.density_source == 'best_track' and focus_xy is not None:
-            d2 = (xy[:, 0] - focus_xy[0]) ** 2 + (xy[:, 1] - focus_xy[1]) ** 2
-            k = min(self.config.esc.local_count, len(rho))
-            nearest = np.argpartition(d2, k - 1)[:k]
-            return float(rho[nearest].mean())
-        return float(rho.mean())
+    def _esc_input(self, xy: np.ndarray, rho: np.ndarray, focus_xy, pose, window: PolarWindow) -> float:
+        esc = self.config.esc
+        if esc.density_source == 'best_track' and focus_xy is not None:
+            radius = esc.local_radius
+            # The disc's area inside the sector, from the same sunflower points SCMDE uses.
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            fx, fy = focus_xy[0] - pose[0], focus_xy[1] - pose[1]
+            sx, sy = c * fx + s * fy, -s * fx + c * fy
+            inside = window.contains(sx + radius * _DISC[:, 0], sy + radius * _DISC[:, 1]).mean()
+            if inside > 0:
+                near = (xy[:, 0] - focus_xy[0]) ** 2 + (xy[:, 1] - focus_xy[1]) ** 2 <= radius ** 2
+                return float(near.sum() / (math.pi * radius ** 2 * inside))
+        return float(rho.mean()) if len(rho) else 0.0

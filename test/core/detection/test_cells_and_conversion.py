@@ -74,7 +74,7 @@ def test_best_track_density_is_local():
     from sonar_tracking.core.sim import SimConfig, Simulator
     sim = Simulator(SimConfig.for_scenario('scenario2'), np.random.default_rng(4))
     y50 = sim.truth(50.0)[1][0, 1]
-    cfg = DetectorConfig.from_flat({'esc.enabled': False, 'esc.density_source': 'best_track', 'esc.local_count': 10})
+    cfg = DetectorConfig.from_flat({'esc.enabled': False, 'esc.density_source': 'best_track'})
     local, sector = ActiveDetector(cfg), ActiveDetector(DetectorConfig.from_flat({'esc.enabled': False}))
     ratios = []
     for _ in range(20):
