@@ -146,8 +146,9 @@ def main_desired_density(args) -> int:
             results[(pd, rho)] = run_monte_carlo(algorithm1.run_candidate, (cfg, pd, rho), args.runs,
                                                  args.seed * 1000 + i, args.jobs, progress)
         best = algorithm1.choose(cfg, results)
-        print(f'SNR {snr:g} dB: rho_D = {best["desired_clutter_density"]:.3g} /m^2 at P_D {best["pd"]:.2f}, '
-              f'T_c {best["t_c"]}, nCTT {best["n_ctt"]} of {args.runs * args.scans}')
+        print(f'SNR {snr:g} dB: rho_D = {best["desired_clutter_density"]:.3g} /m^2 ({best["method"]}; raw argmax '
+              f'{best["raw_argmax_density"]:.3g}) at P_D {best["pd"]:.2f}, T_c {best["t_c"]}, nCTT {best["n_ctt"]} '
+              f'of {args.runs * args.scans}')
         entries.append({'snr_db': snr, 'desired_clutter_density': float(best['desired_clutter_density']),
                         'pd': best['pd'], 't_c': best['t_c']})
         details.append({'snr_db': snr, 'v_rc': cfg.v_rc, **best})

@@ -9,7 +9,10 @@ and Poisson clutter of density rho spread uniformly over the surveillance window
 knows P_D and rho. The confirmation threshold ``T_c`` is then swept (lines 7-14): nCTT(P_D, rho)
 is the number of (run, scan) pairs with a confirmed true track at the smallest T_c whose rate of
 confirmed false tracks is at most ``cft_target`` (0.005: "approximately 0.005"); rho_D is the rho
-of the P_D with the largest nCTT (line 16).
+of the P_D with the largest nCTT (line 16). nCTT is a noisy count (the T_c that meets a rate of
+0.005 rests on a few dozen false-track scans), so the argmax is taken on a parabola fitted to nCTT
+against log(rho) over all candidates; when the fit has no maximum inside the candidates' range,
+the raw argmax is kept. Both are reported.
 
 The sweep over T_c is done after the runs, from each track's existence history: a track counts
 as confirmed at scan k for threshold T once its existence has exceeded T (confirmation is kept,
@@ -136,6 +139,16 @@ def choose(cfg: Algorithm1Config, results: dict[tuple[float, float], list[dict]]
         j = ok[0]
         rows.append({'pd': pd, 'rho': rho, 't_c': float(T_GRID[j]), 'n_ctt': int(has[:, :, j].sum()),
                      'cft_rate': float(cft[j])})
-    best = max(rows, key=lambda row: row['n_ctt'])
-    return {'desired_clutter_density': best['rho'], 'pd': best['pd'], 't_c': best['t_c'], 'n_ctt': best['n_ctt'],
+    raw = max(rows, key=lambda row: row['n_ctt'])
+    rho_d, method = raw['rho'], 'argmax'
+    ok = [r for r in rows if r['t_c'] is not None]
+    if len(ok) >= 3:
+        lr = np.log10([r['rho'] for r in ok])
+        a, b, _ = np.polyfit(lr, [r['n_ctt'] for r in ok], 2)
+        if a < 0 and lr.min() <= -b / (2 * a) <= lr.max():
+            rho_d, method = float(10 ** (-b / (2 * a))), 'parabola'
+    nearest = min(ok or rows, key=lambda r: abs(math.log(r['rho'] / rho_d)))
+    snr = snr_linear(cfg.snr_db)
+    return {'desired_clutter_density': rho_d, 'pd': float((rho_d * cfg.v_rc) ** (1.0 / (1.0 + snr))),
+            't_c': nearest['t_c'], 'n_ctt': raw['n_ctt'], 'method': method, 'raw_argmax_density': raw['rho'],
             'candidates': rows}
