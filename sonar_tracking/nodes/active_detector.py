@@ -92,10 +92,12 @@ class ActiveDetectorNode(Node):
         self.create_subscription(LaserScan, '/sonar/sector_info', self._on_info, sectors)
         self.create_subscription(Odometry, '/platform/odometry', self._on_odometry, 50)
         self.create_subscription(PointCloud2, '/tracks', self._on_tracks, 10)
-        self.pub_det = self.create_publisher(PointCloud2, '/detections', QoSProfile(depth=50))
-        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        # Deep writer queues: a recorder or tracker that falls behind for a moment under load still
+        # gets every scan (a reliable writer drops what falls out of its queue).
+        self.pub_det = self.create_publisher(PointCloud2, '/detections', QoSProfile(depth=100))
+        latched = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.pub_threshold = self.create_publisher(Float64, '/detector/threshold', latched)
-        self.pub_density = self.create_publisher(Float64, '/detector/clutter_density', 10)
+        self.pub_density = self.create_publisher(Float64, '/detector/clutter_density', 100)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_service(SetBool, '~/esc/enable', self._srv_enable)
         self.create_service(Trigger, '~/esc/reset', self._srv_reset)

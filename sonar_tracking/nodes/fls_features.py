@@ -102,7 +102,7 @@ class FlsFeaturesNode(Node):
         self.create_subscription(Image, '/sonar/sector', self._on_image, sectors)
         self.create_subscription(LaserScan, '/sonar/sector_info', self._on_info, sectors)
         self.create_subscription(Odometry, '/platform/odometry', self._on_odometry, 50)
-        out = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+        out = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         self.pub_info = self.create_publisher(MapMetaData, '/fls/image_info', out)
         self.pub_image = self.create_publisher(Image, '/fls/image', out)
         self.pub_regions = self.create_publisher(PointCloud2, '/fls/regions', out)

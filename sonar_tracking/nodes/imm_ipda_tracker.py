@@ -105,7 +105,8 @@ class ImmIpdaTrackerNode(Node):
         self.create_subscription(PointCloud2, '/detections', self._on_detections, inputs)
         self.create_subscription(Odometry, '/platform/odometry', self._on_odometry, inputs)
         outputs = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        self.pub_tracks = self.create_publisher(PointCloud2, '/tracks', outputs)
+        # A deep writer queue: a recorder that falls behind for a moment still gets every scan.
+        self.pub_tracks = self.create_publisher(PointCloud2, '/tracks', QoSProfile(depth=100))
         self.pub_markers = self.create_publisher(MarkerArray, '/tracks/markers', outputs)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_timer(1.0, self._publish_diagnostics)
