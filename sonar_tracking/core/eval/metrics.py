@@ -16,6 +16,9 @@ ESC paper, §5.1:
   has a CTT (the paper's M counts those runs); the target's CTT is its nearest one.
 * Rate of CFT (Table 1): confirmed-false-track scans / (scans x Monte Carlo runs).
 
+FLS paper, §5: the centre location error CLE (eq. 19), the Euclidean distance between a tracked
+and the true centre, :func:`center_location_error`.
+
 Set metrics, for comparing estimated and true target sets without the labels above:
 
 * OSPA: D. Schuhmacher, B.-T. Vo and B.-N. Vo, "A consistent metric for performance evaluation
@@ -35,7 +38,7 @@ from scipy.optimize import linear_sum_assignment
 
 __all__ = ['TAU_TRUE', 'TAU_FALSE', 'MetricError', 'ftd_distances', 'TrackClasses', 'classify_tracks',
            'ScanEvaluation', 'evaluate_scan', 'confirmed_true_track_rate', 'position_rmse',
-           'confirmed_false_track_rate', 'OspaResult', 'ospa', 'GospaResult', 'gospa']
+           'confirmed_false_track_rate', 'OspaResult', 'ospa', 'GospaResult', 'gospa', 'center_location_error']
 
 #: Thresholds of eqs. (47)-(48) used in the paper.
 TAU_TRUE = 20.0
@@ -254,3 +257,14 @@ def gospa(X, Y, c: float, p: float = 2.0, alpha: float = 2.0) -> GospaResult:
     loc = float(np.sum(pair_d[real] ** p))
     n_real = int(np.count_nonzero(real))
     return GospaResult(distance=total ** (1.0 / p), localisation=loc ** (1.0 / p), missed=m - n_real, false=n - n_real)
+
+
+def center_location_error(estimated, truth) -> np.ndarray | float:
+    """FLS paper eq. (19): ``sqrt((x_p - x_g)^2 + (y_p - y_g)^2)`` between tracked centres
+    ``(..., 2)`` and true centres ``(..., 2)`` (broadcast); a float for single points."""
+    p = np.asarray(estimated, dtype=float)
+    g = np.asarray(truth, dtype=float)
+    if p.shape[-1:] != (2,) or g.shape[-1:] != (2,):
+        raise MetricError(f'centres must have a last axis of 2 (x, y), got {p.shape} and {g.shape}')
+    d = np.hypot(p[..., 0] - g[..., 0], p[..., 1] - g[..., 1])
+    return float(d) if d.ndim == 0 else d

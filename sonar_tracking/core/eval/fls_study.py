@@ -1,0 +1,247 @@
+"""The FLS paper's tracking study (§5): Table 5 situations and the sea trial, by method, Monte Carlo.
+
+One run simulates a situation's frames once (:func:`~.fls_frames.simulate_tracking_frames`) and
+hands the *same* frames to every method (common random numbers): the GPF with adaptive (``af``),
+multiplicative (``mf``) or weighted (``wf``) fusion, the SIR particle filter (``pf``, on the same
+cues with multiplicative fusion) and the EKF on the regions (``ekf``). Each method's random numbers
+come from its own stream spawned from the run's seed.
+
+Scoring, per target and frame, against the target's state as imaged (:mod:`.fls_frames`):
+
+* **Owner.** A target is followed by the track that first came within ``gate`` metres of it (one
+  track per target, chosen jointly by least distance among tracks no other target owns); it keeps
+  that owner while the track exists, and takes a new one (another identity) only when its owner
+  has ended.
+* **CLE** (eq. 19): distance from the owner's estimate to the target; undefined (NaN) while the
+  target has no owner. ``cle_mean`` averages the defined values (the paper's curves).
+* **Lost frame**: a frame where the target has no owner or its owner is farther than ``gate``.
+  ``cle_capped_mean`` counts such frames as ``gate`` and caps the CLE there (an OSPA-like
+  figure that a method cannot improve by dropping tracks).
+* **Identity kept through a crossing** (two targets whose true paths come within
+  ``cross_distance`` of each other): the owner of each target in the last frame before they
+  come that close is, in most frames after they have parted again, within ``gate`` of the same
+  target and nearer to it than to the other one; a run keeps identity when every target does.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fls import FlsConfig
+from ..gpf import EkfConfig, EkfTracker, GpfConfig, GpfTracker
+from ..gpf.management import gated_assignment
+from .fls_frames import TrackingFrame, simulate_tracking_frames
+from .metrics import center_location_error
+
+__all__ = ['METHODS', 'FlsStudy', 'parse_methods', 'situation_scenario', 'run_methods', 'score_run', 'run_once',
+           'summarise', 'cue_statistics', 'crossing_window']
+
+#: Methods of the study, in the order of Figures 13, 16 and 19.
+METHODS = ('af', 'mf', 'wf', 'pf', 'ekf')
+
+
+def parse_methods(text: str) -> tuple[str, ...]:
+    """``'af,mf,ekf'`` -> methods; ValueError names the unknown ones."""
+    out = tuple(m.strip().lower() for m in text.split(',') if m.strip())
+    bad = [m for m in out if m not in METHODS]
+    if bad or not out:
+        raise ValueError(f'unknown method(s) {bad or text!r}; choose from {",".join(METHODS)}')
+    if len(set(out)) != len(out):
+        raise ValueError(f'methods {text!r} names one twice')
+    return out
+
+
+def situation_scenario(situation: int | str) -> str:
+    """Simulator scenario of a Table 5 situation (1-14) or ``'sea-trial'``."""
+    if situation in ('sea-trial', 'sea_trial'):
+        return 'sea_trial'
+    n = int(situation)
+    if not 1 <= n <= 14:
+        raise ValueError(f'situation {situation} is not in Table 5 (1-14)')
+    return f'fls{n}'
+
+
+@dataclass(frozen=True)
+class FlsStudy:
+    """One study: a situation, the methods, the tracker settings and the scoring distances."""
+
+    scenario: str
+    methods: tuple[str, ...] = METHODS
+    config: GpfConfig = GpfConfig()
+    ekf: EkfConfig = EkfConfig()
+    fls: FlsConfig = FlsConfig()
+    preset: str = ''
+    gate: float = 1.5
+    cross_distance: float = 2.0
+    sim_overrides: tuple[tuple[str, object], ...] = ()
+
+
+def _tracker(study: FlsStudy, method: str, rng: np.random.Generator):
+    if method == 'ekf':
+        return EkfTracker(study.config, study.ekf)
+    mode = 'mf' if method == 'pf' else method
+    cfg = study.config.from_flat({'fusion.mode': mode}, base=study.config)
+    return GpfTracker(cfg, rng, method='sir' if method == 'pf' else 'gpf', feature_config=study.fls.features)
+
+
+def run_methods(study: FlsStudy, frames: list[TrackingFrame], seed: np.random.SeedSequence) -> dict[str, list]:
+    """Every method's track records per frame on the same frames."""
+    out = {}
+    streams = seed.spawn(len(METHODS))
+    for method in study.methods:
+        rng = np.random.default_rng(streams[METHODS.index(method)])
+        tracker = _tracker(study, method, rng)
+        per_frame = []
+        for tf in frames:
+            f = tf.frame
+            if method == 'ekf':
+                per_frame.append(tracker.step(f.stamp, f.regions, f.sensor_pose))
+            else:
+                per_frame.append(tracker.step(f.stamp, f.image, f.grid, f.regions, f.sensor_pose))
+        out[method] = per_frame
+    return out
+
+
+def crossing_window(frames: list[TrackingFrame], distance: float) -> tuple[int, int] | None:
+    """``(last frame before, first frame after)`` two targets come within ``distance``; None when
+    no two targets do (or they never part again, or are close from the start)."""
+    if not frames or frames[0].truth.shape[0] < 2:
+        return None
+    xy = np.stack([tf.truth[:, :2] for tf in frames])                           # (F, G, 2)
+    d = np.linalg.norm(xy[:, :, None, :] - xy[:, None, :, :], axis=-1)
+    g = xy.shape[1]
+    close = np.array([np.min(d[k][~np.eye(g, dtype=bool)]) < distance for k in range(len(frames))])
+    idx = np.flatnonzero(close)
+    if idx.size == 0 or idx[0] == 0 or idx[-1] == len(frames) - 1:
+        return None
+    return int(idx[0] - 1), int(idx[-1] + 1)
+
+
+def score_run(frames: list[TrackingFrame], records: list[np.ndarray], gate: float, cross_distance: float) -> dict:
+    """CLE, lost frames, identity changes and identity through the crossing of one method's tracks."""
+    n_f, g = len(frames), frames[0].truth.shape[0] if frames else 0
+    cle = np.full((g, n_f), np.nan)
+    owner_id = np.zeros((g, n_f), np.int64)          # 0 = no owner
+    owner: list[int | None] = [None] * g
+    acquisitions = np.zeros(g, np.int64)
+    for k, (tf, rec) in enumerate(zip(frames, records)):
+        ids = rec['track_id'].astype(np.int64)
+        est = np.column_stack([rec['x'], rec['y']]) if len(rec) else np.zeros((0, 2))
+        where = {int(i): j for j, i in enumerate(ids)}
+        for t in range(g):
+            if owner[t] is not None and owner[t] not in where:
+                owner[t] = None
+        free_targets = [t for t in range(g) if owner[t] is None]
+        taken = {o for o in owner if o is not None}
+        free_tracks = [j for j in range(len(ids)) if int(ids[j]) not in taken]
+        if free_targets and free_tracks:
+            d = np.linalg.norm(tf.truth[free_targets, None, :2] - est[None, free_tracks], axis=-1)
+            for r, c in gated_assignment(d, gate):
+                owner[free_targets[r]] = int(ids[free_tracks[c]])
+                acquisitions[free_targets[r]] += 1
+        for t in range(g):
+            if owner[t] is not None:
+                j = where[owner[t]]
+                cle[t, k] = center_location_error(est[j], tf.truth[t, :2])
+                owner_id[t, k] = owner[t]
+    lost = np.isnan(cle) | (cle > gate)
+    capped = np.where(lost, gate, np.minimum(cle, gate))
+    out = {'cle': cle, 'lost': lost, 'capped': capped, 'acquisitions': acquisitions, 'identity': None}
+    window = crossing_window(frames, cross_distance)
+    if window is not None and g >= 2:
+        before, after = window
+        kept = np.zeros(g, bool)
+        for t in range(g):
+            tid = owner_id[t, before]
+            if tid == 0:
+                continue
+            good = 0
+            post = range(after, n_f)
+            for k in post:
+                rec = records[k]
+                hit = np.flatnonzero(rec['track_id'] == tid)
+                if hit.size == 0:
+                    continue
+                p = np.array([rec['x'][hit[0]], rec['y'][hit[0]]])
+                dist = np.linalg.norm(frames[k].truth[:, :2] - p, axis=1)
+                if dist[t] < gate and dist[t] <= dist.min():
+                    good += 1
+            kept[t] = good > 0.5 * len(post)
+        out['identity'] = kept
+    return out
+
+
+def run_once(study: FlsStudy, seed: np.random.SeedSequence) -> dict:
+    """One Monte Carlo run: simulate, track with every method, score (module docstring)."""
+    sim_seed, track_seed = seed.spawn(2)
+    frames = simulate_tracking_frames(study.scenario, sim_seed, study.fls, study.preset, **dict(study.sim_overrides))
+    tracks = run_methods(study, frames, track_seed)
+    scores = {m: score_run(frames, recs, study.gate, study.cross_distance) for m, recs in tracks.items()}
+    truth = np.stack([tf.truth for tf in frames]) if frames else np.zeros((0, 0, 4))
+    est = {m: [np.column_stack([r['track_id'], r['x'], r['y']]) for r in recs] for m, recs in tracks.items()}
+    return {'stamps': np.array([tf.stamp for tf in frames]), 'ids': frames[0].ids if frames else np.zeros(0),
+            'truth': truth, 'scores': scores, 'tracks': est}
+
+
+def summarise(study: FlsStudy, runs: list[dict]) -> dict:
+    """JSON-ready per-method results over runs: ``cle_mean`` and ``lost_frames`` per target, ``cle``
+    per target per frame (mean over the runs where defined), and the rest (module docstring)."""
+    out = {}
+    for m in study.methods:
+        cle = np.stack([r['scores'][m]['cle'] for r in runs])             # (R, G, F)
+        lost = np.stack([r['scores'][m]['lost'] for r in runs])
+        capped = np.stack([r['scores'][m]['capped'] for r in runs])
+        acq = np.stack([r['scores'][m]['acquisitions'] for r in runs])
+        with np.errstate(invalid='ignore'):
+            per_frame = np.nanmean(np.where(np.isnan(cle), np.nan, cle), axis=0) if len(runs) else cle
+        res = {
+            'cle_mean': [_finite(np.nanmean(cle[:, t])) for t in range(cle.shape[1])],
+            'cle': [[_finite(v) for v in row] for row in per_frame],
+            'lost_frames': [float(lost[:, t].sum(axis=1).mean()) for t in range(cle.shape[1])],
+            'cle_capped_mean': [float(capped[:, t].mean()) for t in range(cle.shape[1])],
+            'identity_changes': [float((acq[:, t] - 1).clip(0).mean()) for t in range(cle.shape[1])],
+            'runs_never_tracked': [int((acq[:, t] == 0).sum()) for t in range(cle.shape[1])],
+        }
+        ident = [r['scores'][m]['identity'] for r in runs]
+        if ident and all(i is not None for i in ident):
+            kept = np.stack(ident)
+            res['identity_kept_rate'] = float(kept.all(axis=1).mean())
+            res['identity_kept_rate_per_target'] = [float(v) for v in kept.mean(axis=0)]
+        out[m] = res
+    return out
+
+
+def _finite(v) -> float | None:
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def cue_statistics(frames: list[TrackingFrame], config: FlsConfig | None = None, window: float = 1.1) -> dict:
+    """Calibration of :data:`sonar_tracking.core.gpf.cues.CUE_SPECS`: for every cue feature, the
+    median magnitude on targets (``ref``) and the root-mean-square change of its transformed value
+    at a target's imaged centre between consecutive frames (``sigma``)."""
+    from ..gpf.cues import CUE_SPECS, CueSpec, window_pixels
+    from ..fls.windows import WindowImage
+    config = config or FlsConfig()
+    feats = sorted(CUE_SPECS)
+    values: dict[int, list[np.ndarray]] = {}
+    for tf in frames:
+        f = tf.frame
+        wi = WindowImage(f.image, config.features)
+        r, c = f.grid.point_to_pixel(tf.truth[:, 0], tf.truth[:, 1])
+        v = wi.features(np.rint(r).astype(np.int64), np.rint(c).astype(np.int64),
+                        window_pixels(window, f.grid.resolution), feats)
+        for g, tid in enumerate(tf.ids):
+            values.setdefault(int(tid), []).append(v[g])
+    out = {}
+    for i, n in enumerate(feats):
+        spec = CUE_SPECS[n]
+        raw = np.concatenate([np.array(s)[:, i] for s in values.values()])
+        ref = float(np.median(np.abs(raw))) if spec.transform == 'asinh' else spec.ref
+        probe = CueSpec(n, spec.transform, 1.0, ref)
+        diffs = np.concatenate([np.diff(probe.apply(np.array(s)[:, i])) for s in values.values()])
+        out[n] = {'transform': spec.transform, 'ref': ref, 'sigma': float(np.sqrt(np.mean(diffs ** 2)))
+                  if diffs.size else math.nan}
+    return out

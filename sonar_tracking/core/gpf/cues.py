@@ -1,0 +1,160 @@
+"""Feature cues: each particle's features from the processed image, and their distance to a template.
+
+**Where a particle's features come from.** Eq. (13) compares "each particle feature" with the
+track's template, so a particle at ``(x, y)`` must have a value of every selected Table 2 feature.
+We take the *window region* at the particle (:mod:`sonar_tracking.core.fls.windows`): the square
+of ``n x n`` pixels of ``/fls/image`` centred on the pixel that contains ``(x, y)`` (``n`` the odd
+number of pixels closest to ``cues.window``, 0.7 m: the bright core of a tank target's echo), every pixel of the
+square counted as region, with the one-pixel ring around it as the region's surrounding; the
+features are exactly those of Table 2 (``core.fls.features``) on those pixels. Why:
+
+* the template is measured the same way at the region where the track starts, so a particle on
+  the target compares like with like; a segmented region's own features (``/fls/regions``)
+  depend on where segmentation drew its border, which a particle does not have;
+* a particle away from the target still gets well-defined features (background), so every
+  particle has a likelihood and the likelihood falls smoothly as the window slides off the
+  target; a thresholded region would be empty there;
+* the features of a full square can be computed for 300 particles in about a millisecond.
+
+The window's mean intensity (f03) is highest on the target, its ring's mean (f06) lowest when the
+target sits inside the window, the moment invariants (f17, f20) of the intensity in the window
+grow when the target is off-centre, and the texture (f24) changes where target pixels are.
+
+**Distances.** Features of different kinds live on different scales, so each is compared after a
+transform that makes its variation roughly even, divided by a scale ``sigma_i``: ``d_i =
+(T_i(S) - T_i(S_m)) / sigma_i``, i.e. ``beta_i = 1 / sigma_i^2`` in eq. (13). Intensities (f03,
+f04, f06, f08) in dB; signed small-magnitude features (f07 and Hu's invariants f14-f20, whose
+magnitudes span decades and change sign) through ``asinh(v / ref_i)``, linear near zero and
+logarithmic beyond ``ref_i``; the bounded co-occurrence statistics and f09 as they are.
+``sigma_i`` is the root-mean-square change of the transformed feature of a target's window
+between consecutive frames, measured with the default window (7 pixels of 0.1 m) on simulated
+FLS Table 5 situations 1-4 and 8-11 (four seeds each, SeaKing 675 kHz, default ``fls_features``
+settings; :func:`sonar_tracking.core.eval.fls_study.cue_statistics`): the likelihood then says
+how far a particle's window is from the template in units of the target's own frame-to-frame
+variation. ``ref_i`` is the median magnitude of the feature on targets in the same data.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..fls.features import FEATURE_LABELS, FeatureConfig
+from ..fls.grid import ImageGrid
+from ..fls.windows import WindowImage
+
+__all__ = ['CueSpec', 'CUE_SPECS', 'CueModel', 'window_pixels', 'MAX_WINDOW']
+
+#: Largest window side in pixels (a coarse image gets at least 3, a fine one at most this).
+MAX_WINDOW = 41
+
+
+@dataclass(frozen=True)
+class CueSpec:
+    """How feature ``number`` is compared: transform (``db``, ``asinh``, ``linear``), its reference
+    magnitude (``asinh`` only) and the scale ``sigma`` of the transformed value."""
+
+    number: int
+    transform: str
+    sigma: float
+    ref: float = 1.0
+
+    def apply(self, values: np.ndarray) -> np.ndarray:
+        """The transformed feature values."""
+        if self.transform == 'db':
+            return 10.0 * np.log10(np.maximum(values, 1e-6))
+        if self.transform == 'asinh':
+            return np.arcsinh(values / self.ref)
+        return np.asarray(values, dtype=np.float64)
+
+
+def _specs() -> dict[int, CueSpec]:
+    # (transform, sigma, ref) from the calibration described in the module docstring.
+    table = {
+        3: ('db', 2.6), 4: ('db', 4.8), 6: ('db', 1.5), 7: ('asinh', 0.84, 0.92), 8: ('db', 1.9), 9: ('linear', 0.19),
+        14: ('asinh', 0.51, 0.054), 15: ('asinh', 0.75, 7.7e-5), 16: ('asinh', 1.3, 3.6e-6),
+        17: ('asinh', 1.3, 4.8e-6), 18: ('asinh', 3.1, 1.3e-11), 19: ('asinh', 2.3, 2.3e-8),
+        20: ('asinh', 4.0, 7.6e-12), 21: ('linear', 0.9), 22: ('linear', 0.75), 23: ('linear', 0.26),
+        24: ('linear', 0.11), 25: ('linear', 0.28), 26: ('linear', 0.98), 27: ('linear', 0.96),
+        28: ('linear', 0.57), 29: ('linear', 3.1), 30: ('linear', 0.36),
+    }
+    return {n: CueSpec(n, *v) for n, v in table.items()}
+
+
+#: Transform and scale of every Table 2 feature usable as a cue (not the window's own shape: f01,
+#: f02, f05, f10-f13 are the same for every window).
+CUE_SPECS: dict[int, CueSpec] = _specs()
+
+
+def window_pixels(window: float, resolution: float) -> int:
+    """The odd number of pixels closest to ``window`` metres, between 3 and :data:`MAX_WINDOW`."""
+    n = int(round(window / resolution))
+    if n % 2 == 0:
+        n = n + 1 if window / resolution >= n else n - 1
+    return int(min(max(n, 3), MAX_WINDOW))
+
+
+class CueModel:
+    """The selected features as cues: per-particle values, distances to a template (eq. 13)."""
+
+    def __init__(self, features: tuple[int, ...], window: float, alpha: float = 1.0,
+                 feature_config: FeatureConfig | None = None) -> None:
+        missing = [f for f in features if f not in CUE_SPECS]
+        if missing:
+            raise ValueError(f'features {missing} cannot be cues ({", ".join(FEATURE_LABELS[f - 1] for f in missing)} '
+                             'are the same for every window); choose from '
+                             f'{sorted(CUE_SPECS)}')
+        self.features = tuple(int(f) for f in features)
+        self.specs = [CUE_SPECS[f] for f in self.features]
+        self.sigma = np.array([s.sigma for s in self.specs])
+        self.window = float(window)
+        self.alpha = float(alpha)
+        self.feature_config = feature_config or FeatureConfig()
+
+    @property
+    def m(self) -> int:
+        """Number of cues."""
+        return len(self.features)
+
+    def prepare(self, image: np.ndarray) -> WindowImage:
+        """The frame's image, ready for many window lookups."""
+        return WindowImage(image, self.feature_config, MAX_WINDOW)
+
+    def values(self, wi: WindowImage, grid: ImageGrid, xy: np.ndarray) -> np.ndarray:
+        """Transformed features ``(m, K)`` of the windows at positions ``xy (K, 2)`` (image frame)."""
+        r, c = grid.point_to_pixel(xy[:, 0], xy[:, 1])
+        rows = np.rint(np.nan_to_num(r, nan=-1e9, posinf=1e9, neginf=-1e9)).clip(-1e9, 1e9).astype(np.int64)
+        cols = np.rint(np.nan_to_num(c, nan=-1e9, posinf=1e9, neginf=-1e9)).clip(-1e9, 1e9).astype(np.int64)
+        raw = wi.features(rows, cols, window_pixels(self.window, grid.resolution), self.features)
+        out = np.empty((self.m, len(xy)))
+        for i, spec in enumerate(self.specs):
+            out[i] = spec.apply(raw[:, i])
+        return out
+
+    def distances2(self, values: np.ndarray, template: np.ndarray) -> np.ndarray:
+        """``beta_i d^2(S^i, S_m^i)`` of eq. (13): squared scaled distances ``(m, K)``."""
+        d = (values - template[:, None]) / self.sigma[:, None]
+        return d * d
+
+    def log_likelihoods(self, d2: np.ndarray) -> np.ndarray:
+        """``ln P_S(y^i | x)`` of eq. (13) per cue and particle, ``(m, K)``:
+        ``-ln sqrt(2 pi alpha) - beta_i d^2 / (2 alpha^2)`` (the normaliser as printed)."""
+        return -0.5 * math.log(2.0 * math.pi * self.alpha) - d2 / (2.0 * self.alpha ** 2)
+
+    def background(self, wi: WindowImage, grid: ImageGrid, valid: np.ndarray, count: int = 100) -> np.ndarray:
+        """Transformed features ``(m,)`` of the frame's background: the median over windows on a
+        regular lattice of about ``count`` pixels holding data (targets are few, so the median is
+        background). None-like (all NaN) when the image holds no data."""
+        rows, cols = np.nonzero(valid)
+        if rows.size == 0:
+            return np.full(self.m, np.nan)
+        step = max(1, rows.size // count)
+        pick = np.arange(0, rows.size, step)
+        raw = wi.features(rows[pick], cols[pick], window_pixels(self.window, grid.resolution), self.features)
+        return np.array([spec.apply(np.median(raw[:, i])) for i, spec in enumerate(self.specs)])
+
+    @staticmethod
+    def match(d2: np.ndarray) -> np.ndarray:
+        """Mean over cues of the squared scaled distance: 1 on average for the target itself."""
+        return d2.mean(axis=0)

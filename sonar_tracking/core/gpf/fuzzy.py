@@ -1,0 +1,76 @@
+"""Fuzzy weights a_i of the weighted fusion (eq. 14): the procedure of Table 8 with the rules of Table 9.
+
+Table 8: (1) ``f_else,i``, the mean reliability of the other cues; (2) a fuzzy controller with the
+inputs ``1/Delta_i`` and ``f_else,i`` and the rules of Table 9; (3) its output ``b_i``;
+(4) ``a_i = b_i / sum_j b_j``. The paper gives neither the membership functions nor the
+defuzzification; ours:
+
+* **Inputs, normalised.** Reliabilities (``1/Delta_i``, which :mod:`.fusion` takes relative to
+  the particles' own spread) span decades and only mean something against the cue's threshold
+  ``T_i`` of eq. (18), so each is taken as the ratio ``r_i = (1/Delta_i) / T_i`` and put
+  on the universe ``u = clip(log2(r) / 2, -1, 1)``: ``u = 0`` at the switching point of eq. (18),
+  ``+-1`` at four times above or below it. ``f_else,i`` is the mean of ``r_j`` over the other cues
+  (Table 8 divides the sum by m; we divide by the m - 1 terms summed, so a cue set of equal
+  reliabilities gives ``f_else,i = r_i``), normalised the same way.
+* **Membership functions.** Five triangles NB, NS, ZE, PS, PB with peaks at ``u = -1, -0.5, 0,
+  0.5, 1``, each falling to zero at its neighbours' peaks; NB and PB stay at 1 beyond ``-1`` and
+  ``+1`` (shoulders). They form a partition of unity: every ``u`` belongs to at most two sets
+  with memberships summing to 1.
+* **Rules and defuzzification.** Table 9 gives, for each pair (``f_else`` set, ``1/Delta_i`` set),
+  a consequent level 1..5 (rows ``f_else`` NB..PB, columns ``1/Delta_i`` NB..PB): a cue better
+  than the others gets a high level, a cue worse than the others a low one, 3 when they are alike.
+  The levels are singleton outputs; each rule fires with the product of its two memberships and
+  ``b_i`` is the firing-weighted mean of the levels (zero-order Sugeno). With a partition of
+  unity this interpolates Table 9 bilinearly between the set peaks, so ``b_i`` is continuous in
+  both inputs and stays within 1..5, and every ``a_i > 0``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ['RULES', 'memberships', 'universe', 'fuzzy_levels', 'fuzzy_weights']
+
+#: Table 9: consequent level of each rule; rows f_else NB, NS, ZE, PS, PB; columns 1/Delta_i NB..PB.
+RULES = np.array([[3, 4, 4, 5, 5],
+                  [2, 3, 4, 4, 5],
+                  [2, 2, 3, 4, 4],
+                  [1, 2, 2, 3, 4],
+                  [1, 1, 2, 2, 3]], dtype=np.float64)
+
+_PEAKS = np.array([-1.0, -0.5, 0.0, 0.5, 1.0])
+
+
+def universe(ratio: np.ndarray) -> np.ndarray:
+    """The normalised input ``clip(log2(ratio) / 2, -1, 1)`` of a reliability ratio ``(1/Delta)/T``."""
+    r = np.maximum(np.asarray(ratio, dtype=np.float64), 1e-300)
+    return np.clip(np.log2(r) / 2.0, -1.0, 1.0)
+
+
+def memberships(u: np.ndarray) -> np.ndarray:
+    """Memberships ``(..., 5)`` of NB, NS, ZE, PS, PB at normalised inputs ``u`` in ``[-1, 1]``."""
+    u = np.asarray(u, dtype=np.float64)
+    return np.clip(1.0 - np.abs(u[..., None] - _PEAKS) / 0.5, 0.0, 1.0)
+
+
+def fuzzy_levels(own: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """Controller output ``b`` (Table 8 step 3) for reliability ratios of a cue (``own``) and the
+    mean ratio of the other cues (``others``), arrays of one shape."""
+    mu_own = memberships(universe(own))
+    mu_else = memberships(universe(others))
+    fire = mu_else[..., :, None] * mu_own[..., None, :]
+    return np.sum(fire * RULES, axis=(-2, -1)) / np.sum(fire, axis=(-2, -1))
+
+
+def fuzzy_weights(inverse_spread: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
+    """Weights ``a_i`` of eq. (14) (Table 8) from each cue's ``1/Delta_i`` (eq. 17) and ``T_i``.
+
+    Returns ``(m,)`` positive weights summing to 1; one cue gets weight 1.
+    """
+    inv = np.asarray(inverse_spread, dtype=np.float64)
+    m = inv.size
+    if m == 1:
+        return np.ones(1)
+    ratio = inv / np.asarray(thresholds, dtype=np.float64)
+    others = (ratio.sum() - ratio) / (m - 1)
+    b = fuzzy_levels(ratio, others)
+    return b / b.sum()

@@ -1,0 +1,102 @@
+"""The Gaussian particle filter of Kotecha and Djuric (FLS paper §4.1, eqs. 5-12).
+
+The filter keeps one Gaussian per track and never resamples:
+
+* **measurement update** (eqs. 6-8): draw K particles from the predicted Gaussian
+  ``N(x; x_bar_t, sigma_bar_t)`` (the importance function is the prior), weight each by the
+  likelihood ``p(y_t | x_n)``, normalise the weights (step 2 of §4.2.3) and take the weighted mean
+  ``mu_t`` and covariance ``sigma_t``: the posterior ``N(x; mu_t, sigma_t)`` (eq. 8);
+* **prediction** (eqs. 9-12): draw K particles from the posterior, move each by sampling the
+  motion model ``p(x_{t+1} | x_n)``, and take their plain mean (eq. 10) and covariance (eq. 11).
+
+Eq. (11) as printed divides by K (the sample covariance about the sample mean); we keep it. The
+motion model is constant velocity (ESC eq. 3, :class:`~..tracking.motion.ConstantVelocity`) with the
+continuous white-noise acceleration ``Q`` (:func:`~..tracking.noise.white_noise_acceleration`),
+the same pieces as the IMM-IPDA tracker's.
+
+A weighted covariance from few effective particles can be nearly singular; sampling uses a
+Cholesky factor with a small diagonal jitter when needed, and :func:`weighted_moments` may floor
+the position variances (a window on an image cannot place a target better than its pixel).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..tracking.motion import ConstantVelocity
+from ..tracking.noise import white_noise_acceleration
+
+__all__ = ['sample_gaussian', 'weighted_moments', 'motion_matrices', 'propagate', 'predict', 'floor_position',
+           'kalman_update']
+
+_CV = ConstantVelocity(2)
+
+
+def _factor(cov: np.ndarray) -> np.ndarray:
+    """A Cholesky factor of ``cov``, jittered into positive definiteness if it is not."""
+    c = 0.5 * (cov + cov.T)
+    try:
+        return np.linalg.cholesky(c)
+    except np.linalg.LinAlgError:
+        w, v = np.linalg.eigh(c)
+        floor = max(float(w.max()), 1e-12) * 1e-9
+        return v * np.sqrt(np.maximum(w, floor))
+
+
+def sample_gaussian(mean: np.ndarray, cov: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
+    """``k`` draws ``(k, n)`` of ``N(mean, cov)``."""
+    z = rng.standard_normal((k, mean.size))
+    return mean[None, :] + z @ _factor(cov).T
+
+
+def weighted_moments(particles: np.ndarray, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and covariance of particles ``(K, n)``: with normalised ``weights`` the posterior
+    moments of the update (eq. 8, step 2 of §4.2.3), without them eqs. (10)-(11) (1/K)."""
+    if weights is None:
+        weights = np.full(len(particles), 1.0 / len(particles))
+    mean = weights @ particles
+    dev = particles - mean
+    cov = (dev * weights[:, None]).T @ dev
+    return mean, 0.5 * (cov + cov.T)
+
+
+def floor_position(cov: np.ndarray, variance: float) -> np.ndarray:
+    """``cov`` with its position block's eigenvalues raised to at least ``variance``."""
+    pos = cov[:2, :2]
+    w, v = np.linalg.eigh(pos)
+    if w.min() >= variance:
+        return cov
+    out = cov.copy()
+    out[:2, :2] = (v * np.maximum(w, variance)) @ v.T
+    return out
+
+
+def motion_matrices(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
+    """``F`` (ESC eq. 3) and ``Q`` (white-noise acceleration of PSD ``q``) over ``dt`` seconds."""
+    return _CV.transition(dt), white_noise_acceleration(dt, q)
+
+
+def propagate(particles: np.ndarray, F: np.ndarray, Q: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Sample ``p(x_{t+1} | x_n)`` for every particle ``(K, 4)``: ``F x_n + w_n``, ``w_n ~ N(0, Q)``."""
+    noise = rng.standard_normal(particles.shape) @ _factor(Q).T if np.any(Q) else 0.0
+    return particles @ F.T + noise
+
+
+def predict(mean: np.ndarray, cov: np.ndarray, dt: float, q: float, k: int, rng: np.random.Generator
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """GPF time update (eqs. 9-12): sample the posterior, move each particle by the motion model,
+    and return the predicted mean (eq. 10) and covariance (eq. 11)."""
+    F, Q = motion_matrices(dt, q)
+    moved = propagate(sample_gaussian(mean, cov, k, rng), F, Q, rng)
+    return weighted_moments(moved)
+
+
+def kalman_update(mean: np.ndarray, cov: np.ndarray, innovation: np.ndarray, H: np.ndarray, R: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The (extended) Kalman measurement update for one track: gain ``K = P H^T (H P H^T + R)^-1``,
+    ``x + K nu`` and the Joseph form ``(I - K H) P (I - K H)^T + K R K^T`` (symmetric, positive
+    definite even with rounding). ``H`` is the measurement matrix or, for the EKF, the Jacobian."""
+    S = H @ cov @ H.T + R
+    K = np.linalg.solve(S, H @ cov).T
+    I_KH = np.eye(len(mean)) - K @ H
+    new = I_KH @ cov @ I_KH.T + K @ R @ K.T
+    return mean + K @ innovation, 0.5 * (new + new.T)

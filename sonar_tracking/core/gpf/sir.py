@@ -1,0 +1,45 @@
+"""The SIR particle filter baseline (FLS paper Figure 13, "PF"): particles that live between frames.
+
+Unlike the GPF, each track keeps its K weighted particles. Per frame they are moved by sampling
+the same motion model as the GPF's prediction (:func:`.gaussian.propagate`), weighted by the same
+fused cue likelihood, and resampled (systematic resampling, every frame: sampling importance
+resampling). The estimate is the weighted mean before resampling. A frame that does not see the
+target leaves the particles unweighted and spreads them about their mean as the GPF widens its
+covariance (step 3).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .gaussian import motion_matrices
+from .gaussian import propagate as _propagate
+
+__all__ = ['propagate', 'resample', 'spread']
+
+
+def propagate(particles: np.ndarray, dt: float, q: float, rng: np.random.Generator) -> np.ndarray:
+    """Particles moved over ``dt`` by sampling the constant-velocity model."""
+    F, Q = motion_matrices(dt, q)
+    return _propagate(particles, F, Q, rng)
+
+
+def resample(particles: np.ndarray, weights: np.ndarray, rng: np.random.Generator
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Systematic resampling: K particles drawn with probabilities ``weights``, then equal weights."""
+    k = len(weights)
+    positions = (rng.random() + np.arange(k)) / k
+    cum = np.cumsum(weights)
+    cum[-1] = 1.0
+    idx = np.searchsorted(cum, positions, side='right')
+    return particles[np.minimum(idx, k - 1)].copy(), np.full(k, 1.0 / k)
+
+
+def spread(particles: np.ndarray, weights: np.ndarray, inflation: float, cov: np.ndarray) -> np.ndarray:
+    """Particles moved away from their weighted mean by ``sqrt(inflation)`` (their covariance times
+    ``inflation``); ``cov`` is the widened covariance the GPF would have, which caps the spread."""
+    mean = weights @ particles
+    dev = particles - mean
+    current = (dev * weights[:, None]).T @ dev
+    factor = np.sqrt(max(1.0, min(inflation, float(np.trace(cov[:2, :2])) / max(float(np.trace(current[:2, :2])),
+                                                                                  1e-300))))
+    return mean + dev * factor

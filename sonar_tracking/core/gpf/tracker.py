@@ -1,0 +1,319 @@
+"""The multi-target GPF tracker: frames (processed image + regions) in, GPF_TRACK_DTYPE records out.
+
+Per frame at time t (§4.2.3):
+
+1. every track is predicted to t (GPF: eqs. 9-12; SIR: its particles moved by the motion model);
+2. every track is updated on the image (step 2): particles drawn from its prediction, each
+   particle's window features compared with the track's template per cue (eq. 13,
+   :mod:`.cues`), the cues fused (:mod:`.fusion`: ``fusion.mode`` af, mf or wf), the weights
+   normalised and the posterior moments taken (:mod:`.gaussian`); when the estimate does not
+   match the template the frame does not update the track and its covariance widens (step 3);
+3. templates follow the targets' aspect where that is safe, tracks lost too long end, regions no
+   track explains start tentative tracks (step 1), and tracks that saw their target in
+   ``birth.confirm_hits`` frames are confirmed (:mod:`.management`).
+
+``method='sir'`` runs the SIR particle filter baseline (:mod:`.sir`) with exactly the same cues,
+fusion, births and management, so the two differ only in the filter. An image without any data
+(all zero) updates nothing: tracks are predicted and count the frame as a miss. A stamp older
+than the previous one restarts the tracker (a looping recording); ids are never reused.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..fls.features import FeatureConfig
+from ..fls.grid import ImageGrid
+from ..fls.windows import WindowImage
+from ..records import GPF_TRACK_DTYPE
+from . import sir
+from .config import GpfConfig
+from .cues import CueModel
+from .fusion import MF, WF, fuse, normalise_log
+from .gaussian import floor_position, kalman_update, predict, sample_gaussian, weighted_moments
+from .management import (birth_covariance, blend_template, reseed_pairs, should_end, template_may_update,
+                         unexplained, widen)
+from .track import GpfTrack, tracks_to_records
+
+__all__ = ['GpfInputError', 'GpfTracker', 'StepReport', 'regions_xy', 'check_image']
+
+METHODS = ('gpf', 'sir')
+
+
+class GpfInputError(ValueError):
+    """A frame cannot be used; the message says what is wrong with it."""
+
+
+@dataclass
+class StepReport:
+    """What the last :meth:`GpfTracker.step` did."""
+
+    stamp: float = math.nan
+    tracks: int = 0
+    confirmed: int = 0
+    born: int = 0
+    ended: int = 0
+    seen: int = 0
+    missed: int = 0
+    mf: int = 0
+    wf: int = 0
+    regions: int = 0
+    bad_regions: int = 0
+    reseeded: int = 0
+    empty_image: bool = False
+    reset: str = ''
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def check_image(image: np.ndarray, grid: ImageGrid) -> np.ndarray:
+    """The image as a float array (non-finite values as 0 = no data), or GpfInputError."""
+    a = np.asarray(image)
+    if a.ndim != 2:
+        raise GpfInputError(f'image must be 2-D (rows x columns), got shape {a.shape}')
+    if a.shape != grid.shape:
+        raise GpfInputError(f'image is {a.shape[0]} x {a.shape[1]} pixels but its grid says {grid.height} x '
+                            f'{grid.width}')
+    if a.dtype.kind not in 'uif':
+        raise GpfInputError(f'image has dtype {a.dtype}; expected numbers (processed intensity, 0 = no data)')
+    return a
+
+
+def regions_xy(regions: np.ndarray | None) -> tuple[np.ndarray, int]:
+    """Positions ``(N, 2)`` of REGION_DTYPE-like records with finite ``x, y``, and how many were not."""
+    if regions is None or len(regions) == 0:
+        return np.zeros((0, 2)), 0
+    names = regions.dtype.names or ()
+    if 'x' not in names or 'y' not in names:
+        raise GpfInputError(f'regions need fields x and y; they have {sorted(names)}')
+    xy = np.column_stack([regions['x'].astype(float), regions['y'].astype(float)]).reshape(-1, 2)
+    ok = np.isfinite(xy).all(axis=1)
+    return xy[ok], int((~ok).sum())
+
+
+class GpfTracker:
+    """GPF (or SIR) multi-target tracker on FLS frames; see the module docstring.
+
+    ``rng`` is the only source of randomness; the same frames and seed give the same tracks.
+    """
+
+    def __init__(self, config: GpfConfig | None = None, rng: np.random.Generator | None = None,
+                 method: str = 'gpf', feature_config: FeatureConfig | None = None) -> None:
+        if method not in METHODS:
+            raise ValueError(f'method {method!r} must be one of {METHODS}')
+        if rng is None:
+            raise ValueError('GpfTracker needs a numpy.random.Generator (rng=np.random.default_rng(seed))')
+        self.method = method
+        self.rng = rng
+        self.feature_config = feature_config or FeatureConfig()
+        self.configure(config or GpfConfig())
+        self.tracks: list[GpfTrack] = []
+        self.next_id = 1
+        self.stamp: float | None = None
+        self.report = StepReport()
+
+    def configure(self, config: GpfConfig, feature_config: FeatureConfig | None = None) -> None:
+        """Apply new settings; running tracks keep their state (templates are re-measured at their
+        next update if the cue set changed)."""
+        old = getattr(self, 'cues', None)
+        self.config = config
+        if feature_config is not None:
+            self.feature_config = feature_config
+        self.cues = CueModel(config.cues.numbers, config.cues.window, config.cues.alpha, self.feature_config)
+        self.thresholds = np.asarray(config.fusion.per_cue(self.cues.m), dtype=float)
+        self._cues_changed = old is not None and (old.features != self.cues.features or
+                                                  old.feature_config != self.cues.feature_config or
+                                                  old.window != self.cues.window)
+
+    def reset(self) -> None:
+        """End every track (ids keep counting)."""
+        self.tracks = []
+        self.stamp = None
+
+    # -- the frame ------------------------------------------------------------------------------
+    def step(self, stamp: float, image: np.ndarray, grid: ImageGrid, regions: np.ndarray | None = None,
+             sensor_pose: tuple[float, float, float] | None = None) -> np.ndarray:
+        """Process the frame at ``stamp`` [s]: ``image`` the processed image (``/fls/image``, 0 = no
+        data) on ``grid``, ``regions`` its REGION_DTYPE records (only ``x, y`` are used), the sonar
+        pose in the image frame if known. Returns the tracks as GPF_TRACK_DTYPE records."""
+        t0 = time.perf_counter()
+        img = check_image(image, grid)
+        if not math.isfinite(stamp):
+            raise GpfInputError(f'frame stamp {stamp} is not finite')
+        xy, bad = regions_xy(regions)
+        rep = StepReport(stamp=float(stamp), regions=len(xy), bad_regions=bad)
+        if self.stamp is not None and stamp < self.stamp:
+            rep.reset = f'time went back from {self.stamp:.3f} s to {stamp:.3f} s'
+            self.reset()
+        dt = 0.0 if self.stamp is None else float(stamp - self.stamp)
+        self.stamp = float(stamp)
+        if self._cues_changed:
+            for tr in self.tracks:
+                tr.template = None
+            self._cues_changed = False
+
+        for tr in self.tracks:
+            self._predict(tr, dt)
+        t1 = time.perf_counter()
+        valid = np.isfinite(img) & (img > 0)
+        rep.empty_image = not bool(valid.any())
+        wi = None if rep.empty_image else WindowImage(np.where(valid, img, 0.0), self.feature_config)
+        self._background = None if wi is None else self.cues.background(wi, grid, valid)
+        res = grid.resolution
+        for tr in self.tracks:
+            tr.stamp = float(stamp)
+            if wi is None:
+                self._miss(tr)
+            else:
+                self._update(tr, wi, grid, res)
+            rep.seen += tr.seen
+            rep.missed += not tr.seen
+        t2 = time.perf_counter()
+        sensor_xy = None if sensor_pose is None else (float(sensor_pose[0]), float(sensor_pose[1]))
+        covs = birth_covariance(xy, self.config.birth, sensor_xy)
+        if wi is not None:
+            rep.reseeded = self._reseed(xy, covs)
+        self._templates(wi, grid)
+        rep.ended = self._end()
+        if wi is not None:
+            rep.born = self._births(xy, covs, wi, grid)
+        for tr in self.tracks:
+            if not tr.confirmed and tr.hits >= self.config.birth.confirm_hits:
+                tr.confirmed = True
+        rep.tracks = len(self.tracks)
+        rep.confirmed = sum(tr.confirmed for tr in self.tracks)
+        rep.mf = sum(tr.seen and tr.fusion == MF for tr in self.tracks)
+        rep.wf = sum(tr.seen and tr.fusion == WF for tr in self.tracks)
+        rep.seconds = {'predict': t1 - t0, 'update': t2 - t1, 'manage': time.perf_counter() - t2}
+        self.report = rep
+        return tracks_to_records(self.tracks)
+
+    def records(self) -> np.ndarray:
+        """The current tracks as GPF_TRACK_DTYPE records."""
+        return tracks_to_records(self.tracks) if self.tracks else np.zeros(0, GPF_TRACK_DTYPE)
+
+    # -- per track ------------------------------------------------------------------------------
+    def _predict(self, tr: GpfTrack, dt: float) -> None:
+        if dt <= 0.0:
+            return
+        q, k = self.config.motion.noise, self.config.particles
+        if self.method == 'sir':
+            tr.particles = sir.propagate(tr.particles, dt, q, self.rng)
+            tr.mean, tr.cov = weighted_moments(tr.particles, tr.weights)
+        else:
+            tr.mean, tr.cov = predict(tr.mean, tr.cov, dt, q, k, self.rng)
+
+    def _miss(self, tr: GpfTrack) -> None:
+        tr.seen = False
+        tr.misses += 1
+        tr.cov = widen(tr.cov, self.config.lost)
+        if self.method == 'sir':
+            tr.particles = sir.spread(tr.particles, tr.weights, self.config.lost.inflation, tr.cov)
+
+    def _update(self, tr: GpfTrack, wi: WindowImage, grid: ImageGrid, res: float) -> None:
+        """Step 2 of §4.2.3 for one track (see the module docstring)."""
+        if tr.template is None:   # the cue set changed: measure the template where the track is
+            tr.template = self.cues.values(wi, grid, tr.mean[None, :2])[:, 0]
+        k = self.config.particles
+        if self.method == 'sir':
+            particles = tr.particles
+        else:
+            particles = sample_gaussian(tr.mean, tr.cov, k, self.rng)
+        d2 = self.cues.distances2(self.cues.values(wi, grid, particles[:, :2]), tr.template)
+        fused = fuse(self.cues.log_likelihoods(d2), particles[:, :2], self.thresholds, self.config.fusion.mode)
+        if self.method == 'sir':
+            w = normalise_log(np.log(tr.weights) + fused.log_likelihood)
+        else:
+            w = normalise_log(fused.log_likelihood)
+        mean, cov = weighted_moments(particles, w)
+        cov = floor_position(cov, max(res * res / 12.0, self.config.min_std ** 2))
+        observed = self.cues.values(wi, grid, mean[None, :2])[:, 0]
+        match = float(self.cues.match(self.cues.distances2(observed[:, None], tr.template))[0])
+        distinct = float(self.cues.match(self.cues.distances2(self._background[:, None], tr.template))[0])
+        tr.match, tr.distinct, tr.last_weights = match, distinct, w
+        tr.inverse_spread, tr.a = fused.inverse_spread, fused.a
+        lost = self.config.lost
+        if not (distinct > lost.distinct and match < lost.ratio * distinct):
+            self._miss(tr)
+            return
+        tr.mean, tr.cov, tr.fusion = mean, cov, fused.mode
+        tr.seen, tr.misses = True, 0
+        tr.hits += 1
+        tr.last_seen = tr.stamp
+        tr.observed = observed
+        if self.method == 'sir':
+            tr.particles, tr.weights = sir.resample(particles, w, self.rng)
+
+    # -- management -----------------------------------------------------------------------------
+    def _templates(self, wi: WindowImage | None, grid: ImageGrid) -> None:
+        if wi is None or not self.tracks:
+            return
+        positions = np.array([tr.mean[:2] for tr in self.tracks])
+        for i, tr in enumerate(self.tracks):
+            if not tr.seen or tr.observed is None:
+                continue
+            others = np.delete(positions, i, axis=0)
+            if template_may_update(tr.match, tr.mean[:2], others, self.config.template):
+                tr.template = blend_template(tr.template, tr.observed, self.config.template.rate)
+                tr.template_updates += 1
+
+    def _end(self) -> int:
+        keep = [tr for tr in self.tracks if not should_end(tr.confirmed, tr.last_seen, tr.stamp, self.config.lost)]
+        ended = len(self.tracks) - len(keep)
+        self.tracks = keep
+        return ended
+
+    def _reseed(self, xy: np.ndarray, covs: np.ndarray) -> int:
+        """Lost tracks take up free regions in their gate (:mod:`.management`), confirmed tracks
+        first."""
+        return self._reseed_group(xy, covs, True) + self._reseed_group(xy, covs, False)
+
+    def _reseed_group(self, xy: np.ndarray, covs: np.ndarray, confirmed: bool) -> int:
+        lost = [tr for tr in self.tracks if not tr.seen and tr.confirmed == confirmed]
+        if not lost or len(xy) == 0:
+            return 0
+        c = self.config.birth
+        seen = [tr for tr in self.tracks if tr.seen]
+        means = np.array([tr.mean[:2] for tr in seen]).reshape(-1, 2)
+        pcov = np.array([tr.cov[:2, :2] for tr in seen]).reshape(-1, 2, 2)
+        free = np.flatnonzero(unexplained(xy, means, pcov, c, covs, c.separation))
+        pairs = reseed_pairs(xy[free], np.array([tr.mean[:2] for tr in lost]),
+                             np.array([tr.cov[:2, :2] for tr in lost]), covs[free], c.gate)
+        H = np.eye(2, 4)
+        for i, j in pairs:
+            tr, r = lost[i], free[j]
+            # The region measures the position with the initial spread: a Kalman update of the
+            # widened prediction, which also corrects the velocity through their correlation.
+            tr.mean, tr.cov = kalman_update(tr.mean, tr.cov, xy[r] - tr.mean[:2], H, covs[r][:2, :2])
+            tr.seen, tr.misses, tr.hits, tr.last_seen = True, 0, tr.hits + 1, tr.stamp
+            tr.match, tr.observed = 0.0, None
+            if self.method == 'sir':
+                tr.particles = sample_gaussian(tr.mean, tr.cov, self.config.particles, self.rng)
+                tr.weights = np.full(self.config.particles, 1.0 / self.config.particles)
+        return len(pairs)
+
+    def _births(self, xy: np.ndarray, covs: np.ndarray, wi: WindowImage, grid: ImageGrid) -> int:
+        c = self.config.birth
+        if len(xy) == 0:
+            return 0
+        means = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)
+        pcov = np.array([tr.cov[:2, :2] for tr in self.tracks]).reshape(-1, 2, 2)
+        free = np.flatnonzero(unexplained(xy, means, pcov, c, covs, c.separation))
+        room = max(0, c.max_tracks - len(self.tracks))
+        free = free[:room]
+        if free.size == 0:
+            return 0
+        templates = self.cues.values(wi, grid, xy[free])
+        for j, i in enumerate(free):
+            mean = np.array([xy[i, 0], xy[i, 1], 0.0, 0.0])
+            tr = GpfTrack(track_id=self.next_id, mean=mean, cov=covs[i], template=templates[:, j],
+                          born=self.stamp, stamp=self.stamp, last_seen=self.stamp)
+            self.next_id += 1
+            if self.method == 'sir':
+                tr.particles = sample_gaussian(mean, covs[i], self.config.particles, self.rng)
+                tr.weights = np.full(self.config.particles, 1.0 / self.config.particles)
+            tr.confirmed = tr.hits >= c.confirm_hits
+            self.tracks.append(tr)
+        return int(free.size)
