@@ -1,6 +1,8 @@
 """``/diagnostics`` for the package's processing nodes: rates, latency, counts, drops."""
 from __future__ import annotations
 
+import math
+import re
 import time
 from collections import deque
 
@@ -25,11 +27,22 @@ class StageDiagnostics:
         self._latency = deque(maxlen=200)
         self._stamps = deque(maxlen=200)
         self.values: dict[str, str] = {}
+        self._last_report: dict[str, float] = {}
 
     def drop(self, reason: str) -> None:
         """Count a dropped message under a short reason key."""
         self.dropped[reason] = self.dropped.get(reason, 0) + 1
         self._recent_drops += 1
+
+    def report(self, logger, reason: str, text: str, level: str = 'error') -> None:
+        """Count a dropped message and log why: each kind of problem at once, then at most once a
+        second (a sensor sending bad data all the time must not flood the log, nor hide a new fault)."""
+        self.drop(reason)
+        key = reason + ':' + re.sub(r'[-+0-9.e]+', '#', text)
+        now = time.monotonic()
+        if now - self._last_report.get(key, -math.inf) >= 1.0:
+            self._last_report[key] = now
+            getattr(logger, level)(text)
 
     def done(self, started: float) -> None:
         """Count a processed message whose work began at ``time.perf_counter()`` = ``started``."""

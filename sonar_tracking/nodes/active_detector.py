@@ -8,24 +8,24 @@ threshold applied to the scan just processed, transient local), ``/detector/clut
 ``~/esc/reset`` (Trigger; the response message is the state as JSON: threshold, clutter density,
 scan count after the reset, and under ``reset_from`` the state that was reset).
 
-Time: a repeated stamp or one slightly older than the last sector is an error and the sector is
-dropped with the detector state untouched; a jump back by more than ``time_jump_reset`` seconds
-means a new recording (a looping bag): the detector restarts from ``threshold.initial``.
+Sector input (pairing, bad messages, time order, the pose from odometry) is
+:class:`~sonar_tracking.nodes._sector_input.SectorInput`: a repeated stamp or one slightly older
+than the last sector is an error and the sector is dropped with the detector state untouched; a
+jump back by more than ``time_jump_reset`` seconds means a new recording (a looping bag): the
+detector restarts from ``threshold.initial``.
 """
 from __future__ import annotations
 
 import dataclasses
 import json
-import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from nav_msgs.msg import Odometry
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import Image, LaserScan, PointCloud2
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
@@ -33,32 +33,21 @@ import msg_adapters as ma
 from sonar_tracking.core.config import ConfigError, setting
 from sonar_tracking.core.detection import (ActiveDetector, DesiredDensityTable, DetectionInputError, DetectorConfig,
                                            TableError)
-from sonar_tracking.core.pose import PoseBuffer
 from sonar_tracking.resources import config_path
 
 from ._diagnostics import StageDiagnostics
 from ._params import ConfigParameters
 from ._runtime import run_node
+from ._sector_input import SectorInput, SectorInputConfig
 
 __all__ = ['DetectorNodeConfig', 'ActiveDetectorNode', 'main', 'resolve_desired_density']
 
 
 @dataclass(frozen=True)
-class DetectorNodeConfig(DetectorConfig):
-    """Detector settings plus the node's frames, static pose and time handling."""
+class DetectorNodeConfig(DetectorConfig, SectorInputConfig):
+    """Detector settings, sector input settings (static pose, time jumps) and the output frame."""
 
     world_frame: str = setting('world', 'frame of /detections', read_only=True)
-    sonar_pose: tuple[float, ...] = setting((0.0, 0.0, 0.0), 'sonar [x m, y m, yaw deg] in the world frame when '
-                                            'there is no /platform/odometry')
-    time_jump_reset: float = setting(3.0, 'a stamp this much older than the last one restarts the detector '
-                                     '(a looping bag); smaller steps back are dropped', unit='s', low=0.0, high=1e6)
-    max_pending: int = setting(16, 'sector halves kept while waiting for their partner', low=1, high=1000,
-                               read_only=True)
-
-    def validate(self) -> None:
-        super().validate()
-        if len(self.sonar_pose) != 3:
-            raise ConfigError(f'sonar_pose = {list(self.sonar_pose)} must be [x, y, yaw_deg]')
 
 
 def resolve_desired_density(config: DetectorConfig) -> float:
@@ -81,16 +70,9 @@ class ActiveDetectorNode(Node):
                                        check=resolve_desired_density)
         self.config: DetectorNodeConfig = self.params.config
         self.detector = self._make_detector(self.config)
-        self.pairer = ma.SectorPairer(self.config.max_pending)
-        self.poses = PoseBuffer()
         self.best_track: tuple[float, float] | None = None
-        self.last_stamp: int | None = None
         self.diag = StageDiagnostics('active_detector: detection')
-
-        sectors = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-        self.create_subscription(Image, '/sonar/sector', self._on_image, sectors)
-        self.create_subscription(LaserScan, '/sonar/sector_info', self._on_info, sectors)
-        self.create_subscription(Odometry, '/platform/odometry', self._on_odometry, 50)
+        self.input = SectorInput(self, self.diag, lambda: self.config, self._process, self._on_reset)
         self.create_subscription(PointCloud2, '/tracks', self._on_tracks, 10)
         # Deep writer queues: a recorder or tracker that falls behind for a moment under load still
         # gets every scan (a reliable writer drops what falls out of its queue).
@@ -125,33 +107,6 @@ class ActiveDetectorNode(Node):
             self.detector.enabled = new.esc.enabled
 
     # -- inputs ------------------------------------------------------------------------------
-    def _on_image(self, msg: Image) -> None:
-        self._handle(self.pairer.add_image, msg, 'sector image')
-
-    def _on_info(self, msg: LaserScan) -> None:
-        self._handle(self.pairer.add_info, msg, 'sector geometry')
-
-    def _handle(self, add, msg, what: str) -> None:
-        try:
-            pair = add(msg)
-        except ma.AdapterError as exc:
-            self.diag.drop('bad_stamp')
-            self.get_logger().error(f'{what} dropped: {exc}', throttle_duration_sec=1.0)
-            return
-        for kind, stamp in self.pairer.pop_dropped():
-            self.diag.drop('unpaired')
-            self.get_logger().warning(f'sector {kind} at {stamp / 1e9:.3f} s never got its partner: dropped',
-                                      throttle_duration_sec=1.0)
-        if pair is not None:
-            self._process(pair)
-
-    def _on_odometry(self, msg: Odometry) -> None:
-        try:
-            x, y, yaw = ma.odometry_to_pose(msg)
-            self.poses.add(ma.header_ns(msg) / 1e9, x, y, yaw)
-        except ma.AdapterError as exc:
-            self.get_logger().error(f'odometry dropped: {exc}', throttle_duration_sec=1.0)
-
     def _on_tracks(self, msg: PointCloud2) -> None:
         try:
             tracks = ma.cloud_to_array(msg)
@@ -166,40 +121,20 @@ class ActiveDetectorNode(Node):
             self.get_logger().error(f'/tracks message unusable: {exc}', throttle_duration_sec=1.0)
 
     # -- processing --------------------------------------------------------------------------
-    def _process(self, pair: ma.SectorPair) -> None:
+    def _on_reset(self, back: float) -> None:
+        self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): detector restarted from '
+                                  f'threshold {self.config.threshold.initial:g}')
+        self.detector.reset()
+        self.best_track = None
+
+    def _process(self, stamp: int, amplitudes: np.ndarray, geometry, pose, frame_id: str) -> bool:
         started = time.perf_counter()
-        log = self.get_logger()
-        try:
-            amplitudes, geometry = ma.sector_from_messages(pair.image, pair.info)
-        except ma.AdapterError as exc:
-            self.diag.drop('malformed')
-            log.error(f'sector at {pair.stamp_ns / 1e9:.3f} s dropped: {exc}', throttle_duration_sec=1.0)
-            return
-        stamp = pair.stamp_ns
-        if self.last_stamp is not None and stamp <= self.last_stamp:
-            back = (self.last_stamp - stamp) / 1e9
-            if stamp == self.last_stamp or back <= self.config.time_jump_reset:
-                self.diag.drop('stamp_order')
-                log.error(f'sector at {stamp / 1e9:.3f} s is not newer than the last one '
-                          f'({self.last_stamp / 1e9:.3f} s): dropped', throttle_duration_sec=1.0)
-                return
-            log.warning(f'time went back by {back:.3f} s (a new recording?): detector restarted from '
-                        f'threshold {self.config.threshold.initial:g}')
-            self.detector.reset()
-            self.poses.clear()
-            self.best_track = None
-        pose = self.poses.pose_at(stamp / 1e9)
-        if pose is None:
-            x, y, yaw_deg = self.config.sonar_pose
-            pose = (x, y, math.radians(yaw_deg))
         focus = self.best_track if self.config.esc.density_source == 'best_track' else None
         try:
             result = self.detector.process(amplitudes, geometry, pose, focus)
         except DetectionInputError as exc:
-            self.diag.drop('bad_values')
-            log.error(f'sector at {stamp / 1e9:.3f} s dropped: {exc}', throttle_duration_sec=1.0)
-            return
-        self.last_stamp = stamp
+            self.diag.report(self.get_logger(), 'bad_values', f'sector at {stamp / 1e9:.3f} s dropped: {exc}')
+            return False
         self.pub_det.publish(ma.array_to_cloud(result.detections, stamp_ns=stamp, frame_id=self.config.world_frame))
         self.pub_threshold.publish(Float64(data=result.threshold))
         self.pub_density.publish(Float64(data=result.mean_density))
@@ -207,7 +142,9 @@ class ActiveDetectorNode(Node):
         self.diag.values = {'threshold': f'{result.threshold:.4f}', 'next_threshold': f'{result.next_threshold:.4f}',
                             'clutter_density': f'{result.mean_density:.4g}',
                             'desired_clutter_density': f'{self.detector.desired_density:.4g}',
-                            'detections': str(len(result.detections)), 'esc': 'on' if self.detector.enabled else 'off'}
+                            'detections': str(len(result.detections)), 'esc': 'on' if self.detector.enabled else 'off',
+                            'odometry': 'yes' if self.input.has_odometry else 'no (sonar_pose)'}
+        return True
 
     # -- services and diagnostics ------------------------------------------------------------
     def _srv_enable(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
