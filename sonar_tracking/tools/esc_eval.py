@@ -35,10 +35,13 @@ def add_scenario_arguments(parser, scenario: str) -> None:
     parser.add_argument('--runs', type=int, default=100, help='Monte Carlo runs (paper: 500)')
     parser.add_argument('--scans', type=int, default=scans, help=f'scans per run (paper: {scans})')
     parser.add_argument('--seed', type=int, default=0)
-    parser.add_argument('--methods', default=methods, help=f'comma list of esc and fixed:T (default {methods})')
+    parser.add_argument('--methods', default=methods,
+                        help=f'comma list of esc (from --tau0), esc:T0 and fixed:T (default {methods})')
     parser.add_argument('--desired-density', type=float, default=PAPER_DESIRED_DENSITY[scenario],
                         help=f'rho_D [1/m^2] (default: the paper\'s {PAPER_DESIRED_DENSITY[scenario]:g})')
     parser.add_argument('--snr-db', type=float, default=8.0)
+    parser.add_argument('--confirm', type=float, default=None,
+                        help='the tracker\'s confirmation threshold T_c (default: the tracker\'s, 0.98)')
     parser.add_argument('--jobs', type=int, default=default_jobs(), help='processes (default: all cores)')
     parser.add_argument('--json', type=Path, default=None, help='write the results here')
     parser.add_argument('--plot', type=Path, default=None, help='write a PNG in the style of the paper\'s figures')
@@ -56,11 +59,13 @@ def main_scenario(args) -> int:
         print('error: --runs, --jobs must be >= 1 and --scans >= 2', file=sys.stderr)
         return 2
     study = StudyConfig(scenario=args.scenario, scans=args.scans, lam=getattr(args, 'lam', 1.6), tau0=args.tau0,
-                        desired_density=args.desired_density, snr_db=args.snr_db, methods=methods)
+                        desired_density=args.desired_density, snr_db=args.snr_db, methods=methods,
+                        confirm=args.confirm)
     t0 = time.monotonic()
     runs = run_monte_carlo(run_once, study, args.runs, args.seed, args.jobs, Progress(args.scenario, args.runs))
     wall = time.monotonic() - t0
     result = {'scenario': args.scenario, 'runs': args.runs, 'scans': args.scans, 'seed': args.seed,
+              'confirm': args.confirm, 'tau0': args.tau0,
               'desired_clutter_density': args.desired_density, 'wall_s': wall, 'jobs': args.jobs,
               'methods': summarise(study, runs)}
     if args.scenario == 'scenario1':

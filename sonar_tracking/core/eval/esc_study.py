@@ -40,32 +40,29 @@ PAPER_DESIRED_DENSITY = {'scenario1': 2.21e-5, 'scenario2': 7.52e-5}
 
 @dataclass(frozen=True)
 class Method:
-    """``esc`` (adaptive) or ``fixed:T`` (threshold T)."""
+    """``esc`` (adaptive, from the study's tau_0), ``esc:T0`` (adaptive from T0) or ``fixed:T``."""
 
     name: str
-    threshold: float | None = None
-
-    @property
-    def esc(self) -> bool:
-        return self.threshold is None
+    threshold: float | None = None   # the fixed threshold, or ESC's initial one (None: the study's)
+    esc: bool = False
 
 
 def parse_methods(text: str) -> tuple[Method, ...]:
-    """``'esc,fixed:2,fixed:4'`` -> methods; ValueError says what is wrong."""
+    """``'esc,esc:5,fixed:2,fixed:4'`` -> methods; ValueError says what is wrong."""
     out = []
     for item in (s.strip() for s in text.split(',') if s.strip()):
-        if item == 'esc':
-            out.append(Method('esc'))
-        elif item.startswith('fixed:'):
+        kind, _, value = item.partition(':')
+        if kind not in ('esc', 'fixed') or (kind == 'fixed' and not value):
+            raise ValueError(f'unknown method {item!r}: use esc, esc:T0 or fixed:T')
+        tau = None
+        if value:
             try:
-                tau = float(item[6:])
+                tau = float(value)
             except ValueError:
-                raise ValueError(f'method {item!r}: the threshold after "fixed:" must be a number') from None
+                raise ValueError(f'method {item!r}: the threshold after ":" must be a number') from None
             if not tau > 0:
                 raise ValueError(f'method {item!r}: the threshold must be > 0')
-            out.append(Method(item, tau))
-        else:
-            raise ValueError(f'unknown method {item!r}: use esc or fixed:T')
+        out.append(Method(item, tau, esc=kind == 'esc'))
     if not out:
         raise ValueError('no methods given')
     if len({m.name for m in out}) != len(out):
@@ -101,6 +98,7 @@ class StudyConfig:
     methods: tuple[Method, ...] = field(default_factory=lambda: parse_methods('esc,fixed:2,fixed:4,fixed:6'))
     sigma_r: float = 5.0
     sigma_theta_deg: float = 0.1
+    confirm: float | None = None          # the tracker's T_c (None: the tracker's default)
 
     @property
     def models(self) -> str:
@@ -113,7 +111,10 @@ class StudyConfig:
 
 
 def _tracker(study: StudyConfig, pd: float) -> ImmIpdaTracker:
-    return ImmIpdaTracker(TrackerConfig.from_flat({'imm.models': study.models, 'detection.probability': pd}))
+    flat = {'imm.models': study.models, 'detection.probability': pd}
+    if study.confirm is not None:
+        flat['existence.confirm'] = study.confirm
+    return ImmIpdaTracker(TrackerConfig.from_flat(flat))
 
 
 def run_once(study: StudyConfig, seed: np.random.SeedSequence) -> dict[str, dict[str, np.ndarray]]:
@@ -132,7 +133,8 @@ def run_once(study: StudyConfig, seed: np.random.SeedSequence) -> dict[str, dict
     _, R0 = convert_measurements(np.array([r0]), np.array([b0]), study.sigma_r, math.radians(study.sigma_theta_deg))
     out = {}
     for method in study.methods:
-        values = {'threshold.initial': study.tau0 if method.esc else method.threshold,
+        tau0 = method.threshold if method.threshold is not None else study.tau0
+        values = {'threshold.initial': tau0,
                   'esc.enabled': method.esc, 'cells.sigma_r': study.sigma_r,
                   'cells.sigma_theta_deg': study.sigma_theta_deg}
         if method.esc and study.scenario == 'scenario2':
