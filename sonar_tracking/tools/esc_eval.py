@@ -147,9 +147,11 @@ def main_desired_density(args) -> int:
             return 1
         progress = Progress(f'SNR {snr:g} dB', len(cands) * args.runs)
         results = {}
-        for i, (pd, rho) in enumerate(cands):
-            results[(pd, rho)] = run_monte_carlo(algorithm1.run_candidate, (cfg, pd, rho), args.runs,
-                                                 args.seed * 1000 + i, args.jobs, progress)
+        for pd, rho in cands:
+            # The same seeds for every candidate (common random numbers): the candidates' nCTT differ
+            # by their (P_D, rho), not by independent noise.
+            results[(pd, rho)] = run_monte_carlo(algorithm1.run_candidate, (cfg, pd, rho), args.runs, args.seed,
+                                                 args.jobs, progress)
         best = algorithm1.choose(cfg, results)
         print(f'SNR {snr:g} dB: rho_D = {best["desired_clutter_density"]:.3g} /m^2 ({best["method"]}; raw argmax '
               f'{best["raw_argmax_density"]:.3g}) at P_D {best["pd"]:.2f}, T_c {best["t_c"]}, nCTT {best["n_ctt"]} '

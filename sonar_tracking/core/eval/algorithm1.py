@@ -10,9 +10,10 @@ knows P_D and rho. The confirmation threshold ``T_c`` is then swept (lines 7-14)
 is the number of (run, scan) pairs with a confirmed true track at the smallest T_c whose rate of
 confirmed false tracks is at most ``cft_target`` (0.005: "approximately 0.005"); rho_D is the rho
 of the P_D with the largest nCTT (line 16). nCTT is a noisy count (the T_c that meets a rate of
-0.005 rests on a few dozen false-track scans), so the argmax is taken on a parabola fitted to nCTT
-against log(rho) over all candidates; when the fit has no maximum inside the candidates' range,
-the raw argmax is kept. Both are reported.
+0.005 rests on a few dozen false-track scans), so the argmax is taken on nCTT smoothed by a running
+mean over five neighbouring candidates (fewer at the ends); the raw argmax is reported too. (With
+our tracker nCTT rises as rho falls from rho_max and then levels off, a shape a fitted parabola
+would misplace.)
 
 The sweep over T_c is done after the runs, from each track's existence history: a track counts
 as confirmed at scan k for threshold T once its existence has exceeded T (confirmation is kept,
@@ -139,16 +140,12 @@ def choose(cfg: Algorithm1Config, results: dict[tuple[float, float], list[dict]]
         j = ok[0]
         rows.append({'pd': pd, 'rho': rho, 't_c': float(T_GRID[j]), 'n_ctt': int(has[:, :, j].sum()),
                      'cft_rate': float(cft[j])})
+    rows.sort(key=lambda row: row['rho'])
     raw = max(rows, key=lambda row: row['n_ctt'])
-    rho_d, method = raw['rho'], 'argmax'
-    ok = [r for r in rows if r['t_c'] is not None]
-    if len(ok) >= 3:
-        lr = np.log10([r['rho'] for r in ok])
-        a, b, _ = np.polyfit(lr, [r['n_ctt'] for r in ok], 2)
-        if a < 0 and lr.min() <= -b / (2 * a) <= lr.max():
-            rho_d, method = float(10 ** (-b / (2 * a))), 'parabola'
-    nearest = min(ok or rows, key=lambda r: abs(math.log(r['rho'] / rho_d)))
-    snr = snr_linear(cfg.snr_db)
-    return {'desired_clutter_density': rho_d, 'pd': float((rho_d * cfg.v_rc) ** (1.0 / (1.0 + snr))),
-            't_c': nearest['t_c'], 'n_ctt': raw['n_ctt'], 'method': method, 'raw_argmax_density': raw['rho'],
-            'candidates': rows}
+    counts = np.array([row['n_ctt'] for row in rows], dtype=float)
+    smooth = np.array([counts[max(0, i - 2):i + 3].mean() for i in range(len(counts))])
+    for row, v in zip(rows, smooth):
+        row['n_ctt_smoothed'] = float(v)
+    best = rows[int(np.argmax(smooth))]
+    return {'desired_clutter_density': best['rho'], 'pd': best['pd'], 't_c': best['t_c'], 'n_ctt': best['n_ctt'],
+            'method': 'running mean of 5', 'raw_argmax_density': raw['rho'], 'candidates': rows}

@@ -35,20 +35,36 @@ def test_algorithm1_relations():
     assert [pd for pd, _ in cands] == sorted([pd for pd, _ in cands], reverse=True)
 
 
-def test_choose_takes_the_smallest_t_c_meeting_the_rate_and_the_parabola_vertex():
+def test_choose_takes_the_smallest_t_c_meeting_the_rate_and_the_peak():
     cfg = algorithm1.Algorithm1Config()
     t = len(algorithm1.T_GRID)
     results = {}
-    for pd, rho, peak in ((0.6, 1e-5, 50), (0.55, 3e-5, 90), (0.5, 1e-4, 60)):
+    peaks = [2, 4, 6, 9, 6, 4, 2]
+    for i, peak in enumerate(peaks):
         nf = np.zeros((10, t), int)
         nf[0, :20] = 1                         # below T_GRID[20] the CFT rate is 0.1
         has = np.zeros((10, t), bool)
-        has[:, :] = np.arange(10)[:, None] < peak // 10
-        results[(pd, rho)] = [{'has_ctt': has, 'n_false': nf}]
+        has[:peak] = True
+        results[(0.7 - 0.02 * i, 10.0 ** (-4 - 0.2 * i))] = [{'has_ctt': has, 'n_false': nf}]
     out = algorithm1.choose(cfg, results)
     assert all(c['t_c'] == pytest.approx(algorithm1.T_GRID[20]) for c in out['candidates'])
-    assert out['method'] == 'parabola'
-    assert 1e-5 < out['desired_clutter_density'] < 1e-4 and out['raw_argmax_density'] == 3e-5
+    assert out['desired_clutter_density'] == out['raw_argmax_density'] == pytest.approx(10.0 ** -4.6)
+    assert out['t_c'] == pytest.approx(algorithm1.T_GRID[20]) and out['pd'] == pytest.approx(0.64)
+
+
+def test_choose_smooths_a_noisy_plateau():
+    cfg = algorithm1.Algorithm1Config()
+    t = len(algorithm1.T_GRID)
+    # A rise to a plateau with one lucky spike at the low end: the smoothed peak sits on the plateau.
+    counts = [40, 50, 62, 66, 67, 64, 60, 80, 58]
+    results = {}
+    for i, c in enumerate(counts):
+        has = np.zeros((100, t), bool)
+        has[:c] = True
+        results[(0.5, 10.0 ** (-3 - 0.25 * i))] = [{'has_ctt': has, 'n_false': np.zeros((100, t), int)}]
+    out = algorithm1.choose(cfg, results)
+    assert out['raw_argmax_density'] == pytest.approx(10.0 ** (-3 - 0.25 * 7))
+    assert 10.0 ** (-3 - 0.25 * 6) <= out['desired_clutter_density'] <= 10.0 ** (-3 - 0.25 * 2)
 
 
 def test_a_candidate_run_has_scan_by_threshold_counts():
