@@ -20,7 +20,9 @@ Scoring, per target and frame, against the target's state as imaged (:mod:`.fls_
 * **Identity kept through a crossing** (two targets whose true paths come within
   ``cross_distance`` of each other): the owner of each target in the last frame before they
   come that close is, in most frames after they have parted again, within ``gate`` of the same
-  target and nearer to it than to the other one; a run keeps identity when every target does.
+  target and nearer to it than to the other one. A run keeps identity when every target that had
+  an owner before the crossing does; a run where no target had one says nothing about identity
+  and is left out of the rate (``identity_runs`` counts the runs that count).
 """
 from __future__ import annotations
 
@@ -152,11 +154,11 @@ def score_run(frames: list[TrackingFrame], records: list[np.ndarray], gate: floa
     window = crossing_window(frames, cross_distance)
     if window is not None and g >= 2:
         before, after = window
-        kept = np.zeros(g, bool)
+        kept = np.full(g, np.nan)
         for t in range(g):
             tid = owner_id[t, before]
             if tid == 0:
-                continue
+                continue                       # no track before the crossing: nothing to keep
             good = 0
             post = range(after, n_f)
             for k in post:
@@ -168,7 +170,7 @@ def score_run(frames: list[TrackingFrame], records: list[np.ndarray], gate: floa
                 dist = np.linalg.norm(frames[k].truth[:, :2] - p, axis=1)
                 if dist[t] < gate and dist[t] <= dist.min():
                     good += 1
-            kept[t] = good > 0.5 * len(post)
+            kept[t] = float(good > 0.5 * len(post))
         out['identity'] = kept
     return out
 
@@ -206,9 +208,13 @@ def summarise(study: FlsStudy, runs: list[dict]) -> dict:
         }
         ident = [r['scores'][m]['identity'] for r in runs]
         if ident and all(i is not None for i in ident):
-            kept = np.stack(ident)
-            res['identity_kept_rate'] = float(kept.all(axis=1).mean())
-            res['identity_kept_rate_per_target'] = [float(v) for v in kept.mean(axis=0)]
+            kept = np.stack(ident)                                          # (R, G): 1, 0 or NaN
+            counted = ~np.isnan(kept).all(axis=1)
+            run_kept = np.nan_to_num(kept, nan=1.0).all(axis=1)
+            res['identity_kept_rate'] = float(run_kept[counted].mean()) if counted.any() else None
+            res['identity_runs'] = int(counted.sum())
+            with np.errstate(invalid='ignore'):
+                res['identity_kept_rate_per_target'] = [_finite(np.nanmean(kept[:, t])) for t in range(kept.shape[1])]
         out[m] = res
     return out
 
@@ -245,3 +251,45 @@ def cue_statistics(frames: list[TrackingFrame], config: FlsConfig | None = None,
         out[n] = {'transform': spec.transform, 'ref': ref, 'sigma': float(np.sqrt(np.mean(diffs ** 2)))
                   if diffs.size else math.nan}
     return out
+
+
+def reliability_statistics(frames_by_run: list[list[TrackingFrame]], rng: np.random.Generator,
+                           config: GpfConfig | None = None, prior_std: float = 0.4, particles: int = 300,
+                           quantile: float = 25.0) -> dict[int, float]:
+    """Calibration of the thresholds T_i of eq. (18) (:data:`sonar_tracking.core.gpf.cues.CUE_SPECS`):
+    for every cue feature, the ``quantile`` percentile of its reliability ``Delta_0 / Delta_i``
+    (:func:`sonar_tracking.core.gpf.fusion.fuse`) on a healthy track: particles drawn around a
+    target's imaged centre with ``prior_std`` per axis (its mean off by a third of that), the
+    template its window in the previous frame where segmentation found it, on frames where
+    segmentation finds it again. Below the lower quartile a cue does worse than in 3 of 4 healthy
+    frames: degenerated."""
+    from ..gpf.cues import CUE_SPECS, CueModel
+    from ..gpf.fusion import cue_spreads, cue_weights
+    config = config or GpfConfig()
+    feats = tuple(sorted(CUE_SPECS))
+    cues = CueModel(feats, config.cues.window, config.cues.alpha)
+    out: dict[int, list[float]] = {f: [] for f in feats}
+    for frames in frames_by_run:
+        last: dict[int, np.ndarray] = {}
+        for tf in frames:
+            f = tf.frame
+            wi = cues.prepare(f.image)
+            xy = np.column_stack([f.regions['x'], f.regions['y']]) if len(f.regions) else np.zeros((0, 2))
+            for g, tid in enumerate(tf.ids):
+                t = tf.truth[g, :2]
+                if len(xy) == 0 or np.hypot(*(xy - t).T).min() > 0.6:
+                    continue
+                here = cues.values(wi, f.grid, t[None])[:, 0]
+                template = last.get(int(tid))
+                last[int(tid)] = here
+                if template is None:
+                    continue
+                centre = t + rng.normal(0.0, prior_std / 3.0, 2)
+                pos = centre + rng.normal(0.0, prior_std, (particles, 2))
+                log_p = cues.log_likelihoods(cues.distances2(cues.values(wi, f.grid, pos), template))
+                k = len(pos)
+                prior = cue_spreads(pos, np.full((1, k), 1.0 / k))[0]
+                rel = prior / cue_spreads(pos, cue_weights(log_p))
+                for i, n in enumerate(feats):
+                    out[n].append(float(rel[i]))
+    return {n: float(np.percentile(v, quantile)) if v else math.nan for n, v in out.items()}

@@ -26,6 +26,8 @@ pixels with the paper's five features (20, 17, 3, 6, 24) cost well under a milli
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from .features import (_DIRECTIONS, _GROUPS, N_FEATURES, FeatureConfig, _wanted, glcm_features, hu_moments,
@@ -232,8 +234,10 @@ class WindowImage:
         return out[:, wanted]
 
 
+@functools.lru_cache(maxsize=16)
 def _level_thresholds(config: FeatureConfig) -> np.ndarray:
-    """The smallest intensity of each grey level 1..S-1 under :func:`~.features.quantise`."""
+    """The smallest intensity of each grey level 1..S-1 under :func:`~.features.quantise` (once per
+    setting: the bisection takes milliseconds)."""
     s = config.glcm_levels
     step = (config.glcm_db_max - config.glcm_db_min) / s
     out = np.empty(s - 1)

@@ -47,7 +47,7 @@ class CueConfig(Config):
     window: float = setting(0.7, 'side of the square window around a particle whose features it gets (ours; '
                             'rounded to an odd number of pixels, at least 3)', unit='m', low=0.0, high=20.0,
                             low_open=True)
-    alpha: float = setting(0.6, 'likelihood-function noise alpha of eq. (13); the distance control '
+    alpha: float = setting(1.0, 'likelihood-function noise alpha of eq. (13); the distance control '
                            'coefficients beta_i are 1/sigma_i^2 of each feature (sonar_tracking.core.gpf.cues)',
                            low=0.0, high=100.0, low_open=True)
 
@@ -75,10 +75,11 @@ class FusionConfig(Config):
 
     mode: str = setting('af', 'af: adaptive (eq. 18), mf: multiplicative (eq. 15), wf: weighted with fuzzy '
                         'weights (eq. 14, Tables 8-9)', choices=FUSION_MODES)
-    thresholds: tuple[float, ...] = setting((2.0,), 'T_i of eq. (18): cue i is reliable when it concentrates the '
+    thresholds: tuple[float, ...] = setting((0.0,), 'T_i of eq. (18): cue i is reliable when it concentrates the '
                                             'particles at least this many times (Delta_0 / Delta_i, eq. 17, relative '
-                                            'to their unweighted spread; ours); one value for every cue or one per '
-                                            'cue', low=0.0, high=1e6, low_open=True)
+                                            'to their unweighted spread); 0 = the cue\'s calibrated value '
+                                            '(sonar_tracking.core.gpf.cues); one value for every cue or one per cue',
+                                            low=0.0, high=1e6)
 
     def validate(self) -> None:
         if not self.thresholds:
@@ -127,6 +128,12 @@ class LostConfig(Config):
                            '(ours)', low=0.0, high=1.0, low_open=True)
     inflation: float = setting(1.5, 'covariance multiplied by this in each frame the target is not seen',
                                low=1.0, high=100.0)
+    refind_sigma: float = setting(0.65, 'position std of a region that a lost track takes up (ours: about the '
+                                  'initial spread; tighter values snap to the centroid and disturb the velocity)',
+                                  unit='m', low=0.0, high=100.0, low_open=True)
+    refind_gate: float = setting(6.0, 'a lost track takes up a free region when their squared Mahalanobis distance '
+                                 '(widened track covariance + the initial spread) is below this (6: 95 %; ours)',
+                                 low=0.0, high=1e6, low_open=True)
     max_std: float = setting(1.5, 'widening stops at this position std (ours: a tank target drifts about that far '
                              'from its predicted path in 20 s)', unit='m', low=0.0, high=1e4, low_open=True)
     max_time: float = setting(20.0, 'a confirmed track ends after this long without seeing its target',

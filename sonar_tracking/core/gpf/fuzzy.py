@@ -19,16 +19,22 @@ defuzzification; ours:
 * **Rules and defuzzification.** Table 9 gives, for each pair (``f_else`` set, ``1/Delta_i`` set),
   a consequent level 1..5 (rows ``f_else`` NB..PB, columns ``1/Delta_i`` NB..PB): a cue better
   than the others gets a high level, a cue worse than the others a low one, 3 when they are alike.
-  The levels are singleton outputs; each rule fires with the product of its two memberships and
-  ``b_i`` is the firing-weighted mean of the levels (zero-order Sugeno). With a partition of
-  unity this interpolates Table 9 bilinearly between the set peaks, so ``b_i`` is continuous in
-  both inputs and stays within 1..5, and every ``a_i > 0``.
+  Each rule fires with the product of its two memberships and the output level is the
+  firing-weighted mean of the rule levels (zero-order Sugeno); with a partition of unity this
+  interpolates Table 9 bilinearly between the set peaks, so the level is continuous in both
+  inputs and stays within 1..5.
+* **Output scale.** A weight is a ratio, so the levels are read on a geometric scale:
+  ``b_i = 10 ** (level - 3)``, each level ten times the weight of the one below. With the levels
+  themselves as weights (1 to 5) a degenerated cue would keep a fifth of a good cue's weight, and
+  since a degenerated cue's likelihood is nearly flat over the particles, that share alone would
+  spread the fused likelihood over the whole particle cloud: eq. (14) would not locate anything.
+  Every ``a_i`` stays positive.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ['RULES', 'memberships', 'universe', 'fuzzy_levels', 'fuzzy_weights']
+__all__ = ['RULES', 'LEVEL_RATIO', 'memberships', 'universe', 'fuzzy_levels', 'fuzzy_weights']
 
 #: Table 9: consequent level of each rule; rows f_else NB, NS, ZE, PS, PB; columns 1/Delta_i NB..PB.
 RULES = np.array([[3, 4, 4, 5, 5],
@@ -53,12 +59,16 @@ def memberships(u: np.ndarray) -> np.ndarray:
 
 
 def fuzzy_levels(own: np.ndarray, others: np.ndarray) -> np.ndarray:
-    """Controller output ``b`` (Table 8 step 3) for reliability ratios of a cue (``own``) and the
-    mean ratio of the other cues (``others``), arrays of one shape."""
+    """Controller output level (1..5, Table 8 step 3) for reliability ratios of a cue (``own``) and
+    the mean ratio of the other cues (``others``), arrays of one shape."""
     mu_own = memberships(universe(own))
     mu_else = memberships(universe(others))
     fire = mu_else[..., :, None] * mu_own[..., None, :]
     return np.sum(fire * RULES, axis=(-2, -1)) / np.sum(fire, axis=(-2, -1))
+
+
+#: Weight ratio between consecutive output levels (module docstring).
+LEVEL_RATIO = 10.0
 
 
 def fuzzy_weights(inverse_spread: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
@@ -72,5 +82,5 @@ def fuzzy_weights(inverse_spread: np.ndarray, thresholds: np.ndarray) -> np.ndar
         return np.ones(1)
     ratio = inv / np.asarray(thresholds, dtype=np.float64)
     others = (ratio.sum() - ratio) / (m - 1)
-    b = fuzzy_levels(ratio, others)
+    b = LEVEL_RATIO ** (fuzzy_levels(ratio, others) - 3.0)
     return b / b.sum()

@@ -18,9 +18,9 @@
   known (world x/y otherwise). Velocity starts at zero with ``birth.sigma_speed`` per axis.
 * **Lost (step 3).** A frame whose update does not find the target (see :mod:`.tracker`) leaves
   the prediction in place and multiplies the covariance by ``lost.inflation`` (up to
-  ``lost.max_std``), so the next frame's particles search wider. A lost confirmed track that has
-  a region no other track explains within ``birth.gate`` (its widened covariance plus the initial
-  spread) takes it up again: its position restarts there with the initial spread, keeping its
+  ``lost.max_std``), so the next frame's particles search wider. A lost track that has a region
+  no other track explains within ``lost.refind_gate`` (its widened covariance plus the initial
+  spread; confirmed tracks choose first) takes it up again: its position restarts there with the initial spread, keeping its
   id, velocity and template (the widened search of step 3 finding its target). A confirmed track
   ends after ``lost.max_time`` without its target, a tentative one after ``lost.tentative_time``.
   One empty frame therefore never ends a confirmed track.

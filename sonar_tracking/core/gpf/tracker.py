@@ -122,7 +122,8 @@ class GpfTracker:
         if feature_config is not None:
             self.feature_config = feature_config
         self.cues = CueModel(config.cues.numbers, config.cues.window, config.cues.alpha, self.feature_config)
-        self.thresholds = np.asarray(config.fusion.per_cue(self.cues.m), dtype=float)
+        given = np.asarray(config.fusion.per_cue(self.cues.m), dtype=float)
+        self.thresholds = np.where(given > 0, given, [spec.threshold for spec in self.cues.specs])
         self._cues_changed = old is not None and (old.features != self.cues.features or
                                                   old.feature_config != self.cues.feature_config or
                                                   old.window != self.cues.window)
@@ -280,13 +281,14 @@ class GpfTracker:
         pcov = np.array([tr.cov[:2, :2] for tr in seen]).reshape(-1, 2, 2)
         free = np.flatnonzero(unexplained(xy, means, pcov, c, covs, c.separation))
         pairs = reseed_pairs(xy[free], np.array([tr.mean[:2] for tr in lost]),
-                             np.array([tr.cov[:2, :2] for tr in lost]), covs[free], c.gate)
+                             np.array([tr.cov[:2, :2] for tr in lost]), covs[free], self.config.lost.refind_gate)
         H = np.eye(2, 4)
+        R = np.eye(2) * self.config.lost.refind_sigma ** 2
         for i, j in pairs:
             tr, r = lost[i], free[j]
-            # The region measures the position with the initial spread: a Kalman update of the
-            # widened prediction, which also corrects the velocity through their correlation.
-            tr.mean, tr.cov = kalman_update(tr.mean, tr.cov, xy[r] - tr.mean[:2], H, covs[r][:2, :2])
+            # The region measures the position: a Kalman update of the widened prediction, which
+            # also corrects the velocity through their correlation.
+            tr.mean, tr.cov = kalman_update(tr.mean, tr.cov, xy[r] - tr.mean[:2], H, R)
             tr.seen, tr.misses, tr.hits, tr.last_seen = True, 0, tr.hits + 1, tr.stamp
             tr.match, tr.observed = 0.0, None
             if self.method == 'sir':
