@@ -196,10 +196,9 @@ def summarise(study: FlsStudy, runs: list[dict]) -> dict:
         lost = np.stack([r['scores'][m]['lost'] for r in runs])
         capped = np.stack([r['scores'][m]['capped'] for r in runs])
         acq = np.stack([r['scores'][m]['acquisitions'] for r in runs])
-        with np.errstate(invalid='ignore'):
-            per_frame = np.nanmean(np.where(np.isnan(cle), np.nan, cle), axis=0) if len(runs) else cle
+        per_frame = _nanmean(cle, axis=0)
         res = {
-            'cle_mean': [_finite(np.nanmean(cle[:, t])) for t in range(cle.shape[1])],
+            'cle_mean': [_finite(_nanmean(cle[:, t])) for t in range(cle.shape[1])],
             'cle': [[_finite(v) for v in row] for row in per_frame],
             'lost_frames': [float(lost[:, t].sum(axis=1).mean()) for t in range(cle.shape[1])],
             'cle_capped_mean': [float(capped[:, t].mean()) for t in range(cle.shape[1])],
@@ -213,10 +212,17 @@ def summarise(study: FlsStudy, runs: list[dict]) -> dict:
             run_kept = np.nan_to_num(kept, nan=1.0).all(axis=1)
             res['identity_kept_rate'] = float(run_kept[counted].mean()) if counted.any() else None
             res['identity_runs'] = int(counted.sum())
-            with np.errstate(invalid='ignore'):
-                res['identity_kept_rate_per_target'] = [_finite(np.nanmean(kept[:, t])) for t in range(kept.shape[1])]
+            res['identity_kept_rate_per_target'] = [_finite(_nanmean(kept[:, t])) for t in range(kept.shape[1])]
         out[m] = res
     return out
+
+
+def _nanmean(a: np.ndarray, axis=None):
+    """Mean over the finite entries (NaN where there are none), without numpy's warning."""
+    ok = ~np.isnan(a)
+    n = ok.sum(axis=axis)
+    total = np.where(ok, a, 0.0).sum(axis=axis)
+    return np.where(n > 0, total / np.maximum(n, 1), np.nan)
 
 
 def _finite(v) -> float | None:

@@ -38,13 +38,27 @@ from .management import (birth_covariance, blend_template, reseed_pairs, should_
                          unexplained, widen)
 from .track import GpfTrack, tracks_to_records
 
-__all__ = ['GpfInputError', 'GpfTracker', 'StepReport', 'regions_xy', 'check_image']
+__all__ = ['GpfInputError', 'Frame', 'GpfTracker', 'StepReport', 'regions_xy', 'check_image']
 
 METHODS = ('gpf', 'sir')
 
 
 class GpfInputError(ValueError):
     """A frame cannot be used; the message says what is wrong with it."""
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """A frame prepared for the tracks' updates: its grid, the image for window lookups and the
+    background's transformed cue values (both None when the image holds no data)."""
+
+    grid: ImageGrid
+    windows: WindowImage | None
+    background: np.ndarray | None
+
+    @property
+    def empty(self) -> bool:
+        return self.windows is None
 
 
 @dataclass
@@ -156,19 +170,14 @@ class GpfTracker:
             self._cues_changed = False
 
         for tr in self.tracks:
-            self._predict(tr, dt)
+            self.predict_track(tr, dt)
         t1 = time.perf_counter()
-        valid = np.isfinite(img) & (img > 0)
-        rep.empty_image = not bool(valid.any())
-        wi = None if rep.empty_image else WindowImage(np.where(valid, img, 0.0), self.feature_config)
-        self._background = None if wi is None else self.cues.background(wi, grid, valid)
-        res = grid.resolution
+        frame = self.prepare(img, grid)
+        rep.empty_image = frame.empty
+        wi = frame.windows
         for tr in self.tracks:
             tr.stamp = float(stamp)
-            if wi is None:
-                self._miss(tr)
-            else:
-                self._update(tr, wi, grid, res)
+            self.update_track(tr, frame)
             rep.seen += tr.seen
             rep.missed += not tr.seen
         t2 = time.perf_counter()
@@ -195,8 +204,19 @@ class GpfTracker:
         """The current tracks as GPF_TRACK_DTYPE records."""
         return tracks_to_records(self.tracks) if self.tracks else np.zeros(0, GPF_TRACK_DTYPE)
 
-    # -- per track ------------------------------------------------------------------------------
-    def _predict(self, tr: GpfTrack, dt: float) -> None:
+    # -- per frame and per track -----------------------------------------------------------------
+    def prepare(self, image: np.ndarray, grid: ImageGrid) -> Frame:
+        """The frame's image ready for every track's update: padded for window lookups, and its
+        background features (the median window, :meth:`.cues.CueModel.background`)."""
+        img = check_image(image, grid)
+        valid = np.isfinite(img) & (img > 0)
+        if not valid.any():
+            return Frame(grid, None, None)
+        wi = WindowImage(np.where(valid, img, 0.0), self.feature_config)
+        return Frame(grid, wi, self.cues.background(wi, grid, valid))
+
+    def predict_track(self, tr: GpfTrack, dt: float) -> None:
+        """Move one track ``dt`` seconds on: GPF eqs. (9)-(12), or the SIR particles."""
         if dt <= 0.0:
             return
         q, k = self.config.motion.noise, self.config.particles
@@ -206,6 +226,14 @@ class GpfTracker:
         else:
             tr.mean, tr.cov = predict(tr.mean, tr.cov, dt, q, k, self.rng)
 
+    def update_track(self, tr: GpfTrack, frame: Frame) -> None:
+        """Update one (predicted) track on a prepared frame (step 2 of §4.2.3); a frame without data
+        or without the target is a miss (step 3)."""
+        if frame.windows is None:
+            self._miss(tr)
+        else:
+            self._update(tr, frame)
+
     def _miss(self, tr: GpfTrack) -> None:
         tr.seen = False
         tr.misses += 1
@@ -213,8 +241,8 @@ class GpfTracker:
         if self.method == 'sir':
             tr.particles = sir.spread(tr.particles, tr.weights, self.config.lost.inflation, tr.cov)
 
-    def _update(self, tr: GpfTrack, wi: WindowImage, grid: ImageGrid, res: float) -> None:
-        """Step 2 of §4.2.3 for one track (see the module docstring)."""
+    def _update(self, tr: GpfTrack, frame: Frame) -> None:
+        wi, grid, res = frame.windows, frame.grid, frame.grid.resolution
         if tr.template is None:   # the cue set changed: measure the template where the track is
             tr.template = self.cues.values(wi, grid, tr.mean[None, :2])[:, 0]
         k = self.config.particles
@@ -232,7 +260,7 @@ class GpfTracker:
         cov = floor_position(cov, max(res * res / 12.0, self.config.min_std ** 2))
         observed = self.cues.values(wi, grid, mean[None, :2])[:, 0]
         match = float(self.cues.match(self.cues.distances2(observed[:, None], tr.template))[0])
-        distinct = float(self.cues.match(self.cues.distances2(self._background[:, None], tr.template))[0])
+        distinct = float(self.cues.match(self.cues.distances2(frame.background[:, None], tr.template))[0])
         tr.match, tr.distinct, tr.last_weights = match, distinct, w
         tr.inverse_spread, tr.a = fused.inverse_spread, fused.a
         lost = self.config.lost
