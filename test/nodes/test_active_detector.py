@@ -195,3 +195,23 @@ def test_unmatched_sector_is_dropped_with_a_warning(harness):
     _, err = harness.proc.communicate(timeout=10)
     assert 'never got its partner' in err
     assert [ma.header_ns(m) for m in harness.detections] == [6 * 10**9]
+
+
+def test_desired_density_from_the_table(ros, launch):
+    """esc.desired_clutter_density 0 looks rho_D up in config/desired_density.yaml (log-interpolated)."""
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    from sonar_tracking.core.detection import DesiredDensityTable
+    from sonar_tracking.resources import config_path
+    expected = DesiredDensityTable.load(config_path('desired_density.yaml')).lookup(9.0)
+    proc = launch('active_detector', 'esc.desired_clutter_density:=0.0', 'esc.snr_db:=9.0')
+    client = ros.node.create_client(SetParameters, '/active_detector/set_parameters')
+    assert client.wait_for_service(timeout_sec=20.0)
+    req = SetParameters.Request(parameters=[Parameter('esc.snr_db', value=40.0).to_parameter_msg()])
+    r = ros.result(client.call_async(req)).results[0]
+    assert not r.successful and 'outside the table' in r.reason
+    ros.node.destroy_client(client)
+    proc.send_signal(2)
+    _, err = proc.communicate(timeout=10)
+    assert f'desired clutter density {expected:.3g} /m^2' in err
