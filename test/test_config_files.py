@@ -8,6 +8,7 @@ import yaml
 
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
 from sonar_tracking.nodes.fls_features import FlsNodeConfig
+from sonar_tracking.nodes.gpf_tracker import GpfNodeConfig
 from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
 from sonar_tracking.nodes.seaking_sim import SimNodeConfig
 
@@ -24,6 +25,7 @@ NODES = {
     'active_detector': (DetectorNodeConfig, DetectorNodeConfig.from_flat),
     'imm_ipda_tracker': (TrackerNodeConfig, TrackerNodeConfig.from_flat),
     'fls_features': (FlsNodeConfig, FlsNodeConfig.from_flat),
+    'gpf_tracker': (GpfNodeConfig, GpfNodeConfig.from_flat),
 }
 
 

@@ -18,7 +18,7 @@ __all__ = ['main', 'build_parser']
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand (their modules load only when run)."""
-    from . import bench, esc_eval, select_features, track_csv
+    from . import bench, esc_eval, fls_eval, select_features, track_csv
     parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].replace('``', ''),
                                      epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -41,6 +41,10 @@ def build_parser() -> argparse.ArgumentParser:
                        'tank regions')
     select_features.add_arguments(p)
     p.set_defaults(handler=select_features.main_args)
+    p = sub.add_parser('fls', help='FLS paper §5: GPF (af, mf, wf), SIR and EKF tracks on Table 5 situations or the '
+                       'sea-trial preset, CLE by method')
+    fls_eval.add_arguments(p)
+    p.set_defaults(handler=fls_eval.main_args)
     return parser
 
 

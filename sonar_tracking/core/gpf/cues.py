@@ -105,9 +105,10 @@ CUE_SPECS: dict[int, CueSpec] = _specs()
 
 def window_pixels(window: float, resolution: float) -> int:
     """The odd number of pixels closest to ``window`` metres, between 3 and :data:`MAX_WINDOW`."""
-    n = int(round(window / resolution))
+    ratio = round(window / resolution, 9)  # 0.7 / 0.05 is 13.999999999999998
+    n = int(round(ratio))
     if n % 2 == 0:
-        n = n + 1 if window / resolution >= n else n - 1
+        n = n + 1 if ratio >= n else n - 1
     return int(min(max(n, 3), MAX_WINDOW))
 
 

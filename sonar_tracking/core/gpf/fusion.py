@@ -46,7 +46,8 @@ def normalise_log(log_w: np.ndarray, axis: int = -1) -> np.ndarray:
     lw = np.where(np.isnan(log_w), -np.inf, log_w)
     top = lw.max(axis=axis, keepdims=True)
     bad = ~np.isfinite(top)
-    w = np.exp(lw - np.where(bad, 0.0, top))
+    with np.errstate(over='ignore'):    # -1e308 - 1e308 is -inf: its weight is 0, as it should be
+        w = np.exp(lw - np.where(bad, 0.0, top))
     w = np.where(bad, 1.0, w)
     return w / w.sum(axis=axis, keepdims=True)
 

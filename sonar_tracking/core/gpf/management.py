@@ -20,9 +20,14 @@
   the prediction in place and multiplies the covariance by ``lost.inflation`` (up to
   ``lost.max_std``), so the next frame's particles search wider. A lost track that has a region
   no other track explains within ``lost.refind_gate`` (its widened covariance plus the initial
-  spread; confirmed tracks choose first) takes it up again: its position restarts there with the initial spread, keeping its
-  id, velocity and template (the widened search of step 3 finding its target). A confirmed track
-  ends after ``lost.max_time`` without its target, a tentative one after ``lost.tentative_time``.
+  spread) takes it up again: a Kalman update of the track by the region's position (noise
+  ``lost.refind_sigma``), which keeps its id and template and corrects its velocity. Confirmed
+  tracks choose first; when several lost tracks and regions compete (two targets passing each
+  other), the pairs of least total squared Mahalanobis distance are taken. (Adding the template's
+  distance to each region's window to that cost, to tell unlike targets apart, made identity
+  swaps more frequent on situations 8-11: the templates of weak echoes are too alike.) A
+  confirmed track ends after ``lost.max_time`` without its target, a tentative one after
+  ``lost.tentative_time``.
   One empty frame therefore never ends a confirmed track.
 * **Template (ours).** The template follows the target's changing aspect by exponential
   forgetting, ``S_m <- (1 - rate) S_m + rate S(estimate)``, but only when the estimate matches the
@@ -40,8 +45,8 @@ from scipy.optimize import linear_sum_assignment
 
 from .config import BirthConfig, LostConfig, TemplateConfig
 
-__all__ = ['birth_covariance', 'unexplained', 'mahalanobis2', 'gated_assignment', 'reseed_pairs', 'widen', 'template_may_update',
-           'blend_template', 'should_end']
+__all__ = ['birth_covariance', 'unexplained', 'mahalanobis2', 'gated_assignment', 'reseed_pairs', 'spaced', 'widen',
+           'template_may_update', 'blend_template', 'should_end']
 
 
 def birth_covariance(xy: np.ndarray, config: BirthConfig, sensor_xy: tuple[float, float] | None = None
@@ -118,6 +123,16 @@ def unexplained(regions_xy: np.ndarray, means: np.ndarray, position_covs: np.nda
     free[nearest[hit]] = False
     free &= ~np.any(np.hypot(d[..., 0], d[..., 1]) < separation, axis=0)
     return free
+
+
+def spaced(points: np.ndarray, separation: float) -> np.ndarray:
+    """Which of ``points (N, 2)`` to keep so that no two kept ones are closer than ``separation``,
+    earlier points first: fragments of one target in one frame start one track, not several."""
+    keep = np.zeros(len(points), bool)
+    for i, p in enumerate(points):
+        kept = points[keep]
+        keep[i] = not len(kept) or bool(np.min(np.hypot(kept[:, 0] - p[0], kept[:, 1] - p[1])) >= separation)
+    return keep
 
 
 def widen(cov: np.ndarray, config: LostConfig) -> np.ndarray:

@@ -34,7 +34,7 @@ from .config import GpfConfig
 from .cues import CueModel
 from .fusion import MF, WF, fuse, normalise_log
 from .gaussian import floor_position, kalman_update, predict, sample_gaussian, weighted_moments
-from .management import (birth_covariance, blend_template, reseed_pairs, should_end, template_may_update,
+from .management import (birth_covariance, blend_template, reseed_pairs, should_end, spaced, template_may_update,
                          unexplained, widen)
 from .track import GpfTrack, tracks_to_records
 
@@ -308,6 +308,8 @@ class GpfTracker:
         means = np.array([tr.mean[:2] for tr in seen]).reshape(-1, 2)
         pcov = np.array([tr.cov[:2, :2] for tr in seen]).reshape(-1, 2, 2)
         free = np.flatnonzero(unexplained(xy, means, pcov, c, covs, c.separation))
+        if free.size == 0:
+            return 0
         pairs = reseed_pairs(xy[free], np.array([tr.mean[:2] for tr in lost]),
                              np.array([tr.cov[:2, :2] for tr in lost]), covs[free], self.config.lost.refind_gate)
         H = np.eye(2, 4)
@@ -331,6 +333,7 @@ class GpfTracker:
         means = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)
         pcov = np.array([tr.cov[:2, :2] for tr in self.tracks]).reshape(-1, 2, 2)
         free = np.flatnonzero(unexplained(xy, means, pcov, c, covs, c.separation))
+        free = free[spaced(xy[free], c.separation)]
         room = max(0, c.max_tracks - len(self.tracks))
         free = free[:room]
         if free.size == 0:

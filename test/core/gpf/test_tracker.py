@@ -1,0 +1,221 @@
+"""The GPF tracker on synthetic frames: tracking, weights always normalised and finite, an empty image
+or a frame without regions does not lose a healthy track, lost tracks end, births, restarts, bad
+input, determinism; the SIR and EKF baselines; settings."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from sonar_tracking.core.config import ConfigError
+from sonar_tracking.core.fls import ImageGrid
+from sonar_tracking.core.gpf import EkfTracker, GpfConfig, GpfInputError, GpfTracker
+from sonar_tracking.core.records import GPF_TRACK_DTYPE, REGION_DTYPE
+
+GRID = ImageGrid(resolution=0.1, width=220, height=160, origin_x=0.0, origin_y=-8.0)
+ROWS, COLS = np.indices(GRID.shape)
+
+
+def image(rng, *targets, amplitude=12.0) -> np.ndarray:
+    """Background near 1 (speckle after filtering) and 0.3 x 0.9 m echoes at ``targets``."""
+    img = rng.gamma(16.0, 1.0 / 16.0, GRID.shape)
+    for x, y in targets:
+        r, c = GRID.point_to_pixel(x, y)
+        img += amplitude * np.exp(-0.5 * (((COLS - c) / 1.5) ** 2 + ((ROWS - r) / 4.0) ** 2))
+    return img.astype(np.float32)
+
+
+def regions(*points) -> np.ndarray:
+    rec = np.zeros(len(points), REGION_DTYPE)
+    for i, (x, y) in enumerate(points):
+        rec[i]['region_id'], rec[i]['x'], rec[i]['y'] = i + 1, x, y
+    return rec
+
+
+def walk(k: int, y0: float = 0.5, vx: float = 0.25) -> tuple[float, float]:
+    """A target towed along x at ``vx`` m/s with a small wobble, frames 5 s apart."""
+    return 6.0 + 5.0 * vx * k, y0 + 0.15 * math.sin(0.9 * k)
+
+
+def run(tracker, frames, check=None):
+    out = []
+    for k, (img, reg) in enumerate(frames):
+        out.append(tracker.step(5.0 * k, img, GRID, reg, (0.0, 0.0, 0.0)))
+        if check:
+            check(tracker)
+    return out
+
+
+def check_weights(tracker):
+    for tr in tracker.tracks:
+        if tr.last_weights is not None:
+            w = tr.last_weights
+            assert np.isfinite(w).all() and (w >= 0).all() and abs(w.sum() - 1.0) < 1e-9
+        assert np.isfinite(tr.mean).all() and np.isfinite(tr.cov).all()
+        assert np.all(np.linalg.eigvalsh(tr.cov) > 0)
+
+
+@pytest.mark.parametrize('mode', ['af', 'mf', 'wf'])
+def test_follows_a_towed_target_with_normalised_finite_weights(mode):
+    rng = np.random.default_rng(1)
+    frames = [(image(rng, walk(k)), regions(walk(k))) for k in range(13)]     # x 6 to 21 m; the image ends at 22 m
+    tracker = GpfTracker(GpfConfig.from_flat({'fusion.mode': mode}), np.random.default_rng(2))
+    recs = run(tracker, frames, check_weights)
+    assert all(r.dtype == GPF_TRACK_DTYPE for r in recs)
+    assert len(recs[-1]) == 1 and recs[-1]['confirmed'][0] == 1 and recs[-1]['track_id'][0] == 1
+    err = [math.hypot(r['x'][0] - walk(k)[0], r['y'][0] - walk(k)[1]) for k, r in enumerate(recs)]
+    assert max(err) < 0.5 and np.mean(err[3:]) < 0.2, err
+    assert abs(recs[-1]['vx'][0] - 0.25) < 0.1
+    assert tracker.report.seen == 1 and set(recs[-1]['fusion']) <= {0, 1}
+    if mode != 'af':
+        assert (recs[-1]['fusion'] == (0 if mode == 'mf' else 1)).all()
+
+
+def test_weights_stay_normalised_and_finite_on_hostile_images():
+    rng = np.random.default_rng(3)
+    # Six frames (30 s) that may all miss the target: the lost time must outlast them.
+    tracker = GpfTracker(GpfConfig.from_flat({'lost.max_time': 60.0}), np.random.default_rng(4))
+    run(tracker, [(image(rng, walk(k)), regions(walk(k))) for k in range(3)])
+    hostile = [image(rng, walk(3)) * 1e30, np.full(GRID.shape, 1.0, np.float32), image(rng, walk(5), amplitude=1e-3),
+               np.where(rng.random(GRID.shape) < 0.5, np.nan, image(rng, walk(6))).astype(np.float32),
+               np.full(GRID.shape, np.inf, np.float32), image(rng, walk(8))]
+    for k, img in enumerate(hostile, start=3):
+        tracker.step(5.0 * k, img, GRID, regions(), None)
+        check_weights(tracker)
+        assert len(tracker.tracks) == 1
+
+
+def test_an_empty_image_and_a_frame_without_regions_do_not_lose_a_healthy_track():
+    rng = np.random.default_rng(5)
+    frames = [(image(rng, walk(k)), regions(walk(k))) for k in range(6)]
+    frames.append((np.zeros(GRID.shape, np.float32), regions()))     # no data at all
+    frames.append((image(rng, walk(7)), regions()))                  # echo, no region
+    frames.append((image(rng), regions()))                           # target faded: no echo, no region
+    frames += [(image(rng, walk(k)), regions(walk(k))) for k in range(9, 12)]
+    tracker = GpfTracker(rng=np.random.default_rng(6))
+    recs = run(tracker, frames, check_weights)
+    ids = [r['track_id'].tolist() for r in recs[1:]]
+    assert all(i == [1] for i in ids), ids
+    assert all(r['confirmed'][0] == 1 for r in recs[1:])
+    for k in (6, 7, 8, 9, 11):
+        r = recs[k][0]
+        assert math.hypot(r['x'] - walk(k)[0], r['y'] - walk(k)[1]) < 0.8, (k, r)
+    assert recs[6]['cov_xx'][0] > recs[5]['cov_xx'][0]               # step 3: widened while unseen
+
+
+def test_a_lost_track_ends_after_the_lost_time_and_tentative_ones_sooner():
+    rng = np.random.default_rng(7)
+    tracker = GpfTracker(GpfConfig.from_flat({'lost.max_time': 12.0}), np.random.default_rng(8))
+    run(tracker, [(image(rng, walk(k)), regions(walk(k))) for k in range(4)])
+    stamps, alive = [], []
+    for k in range(4, 9):
+        tracker.step(5.0 * k, image(rng), GRID, regions(), None)
+        stamps.append(5.0 * k)
+        alive.append(len(tracker.tracks))
+    assert alive == [1, 1, 0, 0, 0]                                 # last seen at 15 s: ends once > 12 s
+    tracker.step(45.0, image(rng, (12.0, -5.0)), GRID, regions((12.0, -5.0)), None)
+    assert len(tracker.tracks) == 1 and not tracker.tracks[0].confirmed and tracker.tracks[0].track_id == 2
+    tracker.step(50.0, image(rng), GRID, regions(), None)
+    tracker.step(55.0, image(rng), GRID, regions(), None)
+    assert tracker.tracks == []                                      # tentative: ends after 6 s
+
+
+def test_births_from_unexplained_regions_only():
+    rng = np.random.default_rng(9)
+    a, b = (10.0, 1.25), (10.0, -1.25)                              # side by side, 2.5 m apart
+    tracker = GpfTracker(rng=np.random.default_rng(10))
+    tracker.step(0.0, image(rng, a, b), GRID, regions(a, b, (10.3, 1.3)), (0.0, 0.0, 0.0))
+    assert [tr.track_id for tr in tracker.tracks] == [1, 2]         # the fragment 0.3 m off joins its target
+    tracker.step(5.0, image(rng, a, b), GRID, regions(a, b), (0.0, 0.0, 0.0))
+    assert len(tracker.tracks) == 2 and all(tr.confirmed for tr in tracker.tracks)
+    # The initial spread lies along the line of sight from the sonar (range 0.63 m, across 0.67 m).
+    cov = GpfTracker(rng=np.random.default_rng(0))
+    cov.step(0.0, image(rng, (0.0, 10.0)), GRID, regions((0.0, 10.0)), (0.0, 0.0, 0.0))
+    c = cov.tracks[0].cov
+    assert c[0, 0] == pytest.approx(0.45, rel=1e-3) and c[1, 1] == pytest.approx(0.40, rel=1e-3)
+
+
+def test_a_lost_track_takes_up_its_region_again_with_its_id():
+    rng = np.random.default_rng(11)
+    tracker = GpfTracker(rng=np.random.default_rng(12))
+    run(tracker, [(image(rng, walk(k)), regions(walk(k))) for k in range(5)])
+    # A weak echo the features cannot see, but segmentation found.
+    tracker.step(25.0, image(rng, walk(5), amplitude=0.2), GRID, regions(walk(5)), None)
+    tr = tracker.tracks[0]
+    assert tr.track_id == 1 and tr.seen and tracker.report.reseeded == 1
+    assert math.hypot(tr.mean[0] - walk(5)[0], tr.mean[1] - walk(5)[1]) < 0.4
+
+
+def test_time_going_back_restarts_with_new_ids():
+    rng = np.random.default_rng(13)
+    tracker = GpfTracker(rng=np.random.default_rng(14))
+    run(tracker, [(image(rng, walk(k)), regions(walk(k))) for k in range(3)])
+    rec = tracker.step(1.0, image(rng, walk(0)), GRID, regions(walk(0)), None)
+    assert tracker.report.reset and rec['track_id'].tolist() == [2]
+
+
+def test_bad_input_raises_with_a_reason():
+    tracker = GpfTracker(rng=np.random.default_rng(15))
+    with pytest.raises(GpfInputError, match='grid says'):
+        tracker.step(0.0, np.ones((10, 10)), GRID)
+    with pytest.raises(GpfInputError, match='2-D'):
+        tracker.step(0.0, np.ones(5), GRID)
+    with pytest.raises(GpfInputError, match='fields x and y'):
+        tracker.step(0.0, np.ones(GRID.shape), GRID, np.zeros(2, [('range', '<f8')]))
+    with pytest.raises(GpfInputError, match='not finite'):
+        tracker.step(math.nan, np.ones(GRID.shape), GRID)
+    with pytest.raises(ValueError, match='Generator'):
+        GpfTracker()
+    with pytest.raises(ValueError, match='method'):
+        GpfTracker(rng=np.random.default_rng(0), method='kalman')
+    # Regions without a finite position are skipped and counted.
+    rec = regions((10.0, 0.0), (np.nan, 1.0))
+    tracker.step(0.0, image(np.random.default_rng(0), (10.0, 0.0)), GRID, rec)
+    assert tracker.report.bad_regions == 1 and len(tracker.tracks) == 1
+
+
+def test_same_seed_same_tracks():
+    rng = np.random.default_rng(16)
+    frames = [(image(rng, walk(k)), regions(walk(k))) for k in range(6)]
+    a = run(GpfTracker(rng=np.random.default_rng(17)), frames)
+    b = run(GpfTracker(rng=np.random.default_rng(17)), frames)
+    assert all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def test_sir_baseline_and_ekf_baseline_follow_the_target():
+    rng = np.random.default_rng(18)
+    frames = [(image(rng, walk(k)), regions(walk(k))) for k in range(12)]
+    sir = GpfTracker(rng=np.random.default_rng(19), method='sir')
+    recs = run(sir, frames)
+    for tr in sir.tracks:
+        assert tr.particles.shape == (300, 4) and tr.weights.sum() == pytest.approx(1.0)
+    assert math.hypot(recs[-1]['x'][0] - walk(11)[0], recs[-1]['y'][0] - walk(11)[1]) < 0.4
+    ekf = EkfTracker()
+    out = [ekf.step(5.0 * k, reg, (0.0, 0.0, 0.0)) for k, (_, reg) in enumerate(frames)]
+    assert out[-1]['confirmed'][0] == 1 and out[-1]['track_id'][0] == 1
+    assert math.hypot(out[-1]['x'][0] - walk(11)[0], out[-1]['y'][0] - walk(11)[1]) < 0.3
+    assert abs(out[-1]['vx'][0] - 0.25) < 0.1
+    # A frame without regions: the EKF coasts (and widens); a region far away starts a new track.
+    ekf.step(60.0, regions((3.0, -6.0)), (0.0, 0.0, 0.0))
+    assert [t.track_id for t in ekf.tracks] == [1, 2] and not ekf.tracks[0].seen
+
+
+def test_settings_are_checked_and_applied():
+    with pytest.raises(ConfigError, match='same for every window'):
+        GpfConfig.from_flat({'cues.features': (3.0, 5.0)})
+    with pytest.raises(ConfigError, match='one or 5'):
+        GpfConfig.from_flat({'fusion.thresholds': (1.0, 2.0)})
+    with pytest.raises(ConfigError, match='twice'):
+        GpfConfig.from_flat({'cues.features': (3.0, 3.0)})
+    with pytest.raises(ConfigError, match='whole'):
+        GpfConfig.from_flat({'cues.features': (3.5,)})
+    cfg = GpfConfig.from_flat({'cues.features': (3.0, 24.0), 'fusion.thresholds': (0.0, 1.7)})
+    tracker = GpfTracker(cfg, np.random.default_rng(0))
+    np.testing.assert_allclose(tracker.thresholds, [1.16, 1.7])     # 0 = the cue's calibrated T_i
+    # Changing the cue set re-measures running tracks' templates at their next update.
+    rng = np.random.default_rng(20)
+    run(tracker, [(image(rng, walk(k)), regions(walk(k))) for k in range(3)])
+    tracker.configure(GpfConfig.from_flat({'cues.features': (3.0, 6.0, 24.0)}))
+    tracker.step(15.0, image(rng, walk(3)), GRID, regions(walk(3)), None)
+    assert tracker.tracks[0].template.shape == (3,) and tracker.tracks[0].track_id == 1
