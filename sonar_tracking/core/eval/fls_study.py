@@ -38,7 +38,8 @@ from .fls_frames import TrackingFrame, simulate_tracking_frames
 from .metrics import center_location_error
 
 __all__ = ['METHODS', 'FlsStudy', 'parse_methods', 'situation_scenario', 'run_methods', 'score_run', 'run_once',
-           'summarise', 'cue_statistics', 'crossing_window']
+           'summarise', 'cue_statistics', 'crossing_window', 'reliability_samples',
+           'reliability_statistics', 'switch_thresholds']
 
 #: Methods of the study, in the order of Figures 13, 16 and 19.
 METHODS = ('af', 'mf', 'wf', 'pf', 'ekf')
@@ -259,22 +260,21 @@ def cue_statistics(frames: list[TrackingFrame], config: FlsConfig | None = None,
     return out
 
 
-def reliability_statistics(frames_by_run: list[list[TrackingFrame]], rng: np.random.Generator,
-                           config: GpfConfig | None = None, prior_std: float = 0.4, particles: int = 300,
-                           quantile: float = 25.0) -> dict[int, float]:
-    """Calibration of the thresholds T_i of eq. (18) (:data:`sonar_tracking.core.gpf.cues.CUE_SPECS`):
-    for every cue feature, the ``quantile`` percentile of its reliability ``Delta_0 / Delta_i``
-    (:func:`sonar_tracking.core.gpf.fusion.fuse`) on a healthy track: particles drawn around a
-    target's imaged centre with ``prior_std`` per axis (its mean off by a third of that), the
-    template its window in the previous frame where segmentation found it, on frames where
-    segmentation finds it again. Below the lower quartile a cue does worse than in 3 of 4 healthy
-    frames: degenerated."""
+def reliability_samples(frames_by_run: list[list[TrackingFrame]], rng: np.random.Generator,
+                        config: GpfConfig | None = None, prior_std: float = 0.4, particles: int = 300
+                        ) -> tuple[tuple[int, ...], np.ndarray]:
+    """Every cue feature's reliability ``Delta_0 / Delta_i`` (:func:`sonar_tracking.core.gpf.fusion.fuse`)
+    on healthy tracks: particles drawn around a target's imaged centre with ``prior_std`` per axis
+    (their mean off by a third of that), the template its window in the previous frame where
+    segmentation found it, on frames where segmentation finds it again; with the likelihood of
+    ``config`` (``cues.alpha``). Returns the features and the samples ``(N, features)``, one row a
+    track and frame, so the cues' joint behaviour is kept."""
     from ..gpf.cues import CUE_SPECS, CueModel
     from ..gpf.fusion import cue_spreads, cue_weights
     config = config or GpfConfig()
     feats = tuple(sorted(CUE_SPECS))
     cues = CueModel(feats, config.cues.window, config.cues.alpha)
-    out: dict[int, list[float]] = {f: [] for f in feats}
+    rows: list[np.ndarray] = []
     for frames in frames_by_run:
         last: dict[int, np.ndarray] = {}
         for tf in frames:
@@ -295,7 +295,41 @@ def reliability_statistics(frames_by_run: list[list[TrackingFrame]], rng: np.ran
                 log_p = cues.log_likelihoods(cues.distances2(cues.values(wi, f.grid, pos), template))
                 k = len(pos)
                 prior = cue_spreads(pos, np.full((1, k), 1.0 / k))[0]
-                rel = prior / cue_spreads(pos, cue_weights(log_p))
-                for i, n in enumerate(feats):
-                    out[n].append(float(rel[i]))
-    return {n: float(np.percentile(v, quantile)) if v else math.nan for n, v in out.items()}
+                rows.append(prior / cue_spreads(pos, cue_weights(log_p)))
+    return feats, np.array(rows).reshape(-1, len(feats))
+
+
+def reliability_statistics(frames_by_run: list[list[TrackingFrame]], rng: np.random.Generator,
+                           config: GpfConfig | None = None, prior_std: float = 0.4, particles: int = 300,
+                           quantile: float = 25.0) -> dict[int, float]:
+    """The ``quantile`` percentile of every cue feature's reliability on healthy tracks
+    (:func:`reliability_samples`): below its lower quartile a cue does worse than in 3 of 4
+    healthy frames."""
+    feats, samples = reliability_samples(frames_by_run, rng, config, prior_std, particles)
+    if not len(samples):
+        return {n: math.nan for n in feats}
+    return {n: float(np.percentile(samples[:, i], quantile)) for i, n in enumerate(feats)}
+
+
+def switch_thresholds(samples: np.ndarray, healthy_mf: float = 0.75) -> tuple[np.ndarray, float]:
+    """Thresholds ``T_i`` of eq. (18) for a cue set, from reliability samples ``(N, m)`` of those
+    cues on healthy tracks (:func:`reliability_samples`): every cue's threshold is the same
+    percentile ``p`` of its own samples, with ``p`` chosen so that in a fraction ``healthy_mf`` of
+    the healthy samples every cue is above its threshold (adaptive fusion then uses MF there, and
+    WF in the rest, the frames worse than that share of healthy ones). Returns ``(T (m,), p)``."""
+    s = np.asarray(samples, dtype=np.float64)
+    if s.ndim != 2 or not len(s):
+        raise ValueError('switch_thresholds needs reliability samples (N, m) with N >= 1')
+
+    def rate(p: float) -> tuple[np.ndarray, float]:
+        t = np.percentile(s, p, axis=0)
+        return t, float(np.mean(np.all(s > t, axis=1)))
+
+    lo, hi = 0.0, 100.0
+    for _ in range(40):               # rate(p) falls as p rises: bisection
+        mid = 0.5 * (lo + hi)
+        if rate(mid)[1] >= healthy_mf:
+            lo = mid
+        else:
+            hi = mid
+    return rate(lo)[0], lo

@@ -1,0 +1,54 @@
+"""sonar_eval fls: JSON shape of the issue, the plot, the sea-trial settings and clear errors."""
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from sonar_tracking.tools.fls_eval import SEA_TRIAL, study_for
+from sonar_tracking.tools.sonar_eval import main
+
+
+def test_situation_json_and_plot(tmp_path, capsys):
+    out, png = tmp_path / 'fls.json', tmp_path / 'fls.png'
+    assert main(['fls', '--situation', '8', '--runs', '2', '--seed', '3', '--methods', 'af,mf,ekf', '--jobs', '1',
+                 '--json', str(out), '--plot', str(png)]) == 0
+    data = json.loads(out.read_text())
+    assert {'methods', 'wall_s'} <= set(data) and data['wall_s'] > 0
+    assert list(data['methods']) == ['af', 'mf', 'ekf']
+    n_frames = len(data['stamps'])
+    assert data['situation'] == 8 and data['runs'] == 2 and len(data['target_ids']) == 2
+    for m in data['methods'].values():
+        assert len(m['cle_mean']) == len(m['lost_frames']) == len(m['cle']) == 2
+        assert all(len(row) == n_frames for row in m['cle'])
+        assert all(v is None or v >= 0 for row in m['cle'] for v in row)
+        assert all(0 <= lf <= n_frames for lf in m['lost_frames'])
+        assert 'identity_kept_rate' in m                  # situation 8 crosses
+    assert png.stat().st_size > 10_000
+    assert 'identity kept' in capsys.readouterr().out
+
+
+def test_sea_trial_preset_settings():
+    study = study_for(None, SEA_TRIAL, ('af',))
+    assert study.scenario == 'sea_trial' and study.config.particles == 200
+    assert study_for(None, SEA_TRIAL, ('af',), particles=150).config.particles == 150
+    assert study_for(3, None, ('af',)).config.particles == 300
+
+
+@pytest.mark.parametrize('args, message', [
+    (['--situation', '8', '--methods', 'af,magic'], 'unknown method'),
+    (['--situation', '8', '--runs', '0'], '--runs and --jobs'),
+    (['--situation', '8', '--particles', '3'], '--particles'),
+])
+def test_bad_arguments_exit_2_with_a_message(tmp_path, capsys, args, message):
+    assert main(['fls', *args, '--json', str(tmp_path / 'x.json')]) == 2
+    assert message in capsys.readouterr().err
+    assert not (tmp_path / 'x.json').exists()
+
+
+@pytest.mark.parametrize('args', [['--situation', '15'], ['--situation', '3', '--preset', SEA_TRIAL], []])
+def test_argument_errors_from_the_parser(tmp_path, capsys, args):
+    with pytest.raises(SystemExit) as exc:
+        main(['fls', *args, '--json', str(tmp_path / 'x.json')])
+    assert exc.value.code == 2
+    assert 'error' in capsys.readouterr().err
