@@ -23,6 +23,20 @@ Scoring, per target and frame, against the target's state as imaged (:mod:`.fls_
   target and nearer to it than to the other one. A run keeps identity when every target that had
   an owner before the crossing does; a run where no target had one says nothing about identity
   and is left out of the rate (``identity_runs`` counts the runs that count).
+
+**What the study shows about the GPF (seed 7, 20-30 runs; numbers in the issue note).** On the
+simulated tank situations the window cues of eq. (13) localise a target weakly: a cue's
+reliability ``Delta_0 / Delta_i`` is about 1 (it hardly concentrates the particles), weighted
+fusion keeps an effective sample size near 270 of 300, and the update's posterior mean is on
+average 0.5 m (MF) to 0.7 m (WF) from the target against 0.7 m for the prediction. The tracker's
+own check (the estimate's window must match the template) accepts that update in only 25-45 %
+of track frames; in most others the track is corrected by the region it takes up again
+(:mod:`sonar_tracking.core.gpf.management`), the same centroids the EKF uses. So AF, MF, WF, PF
+and the EKF share most of their corrections, and their 30-run mean CLEs differ by about the
+run-to-run noise: AF with thresholds that make it MF in 97 % of frames differed from MF by up to
+0.25 m on situation 9 (different random streams). A sharper likelihood (``cues.alpha`` 0.5)
+halves the one-step error of MF but makes tracks lock onto the wrong place more often, and the
+mean CLE of AF and MF got worse on situations 1-4 and 8 (seed 7); ``alpha`` stays 1.
 """
 from __future__ import annotations
 
