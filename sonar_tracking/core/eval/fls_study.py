@@ -37,6 +37,24 @@ run-to-run noise: AF with thresholds that make it MF in 97 % of frames differed 
 0.25 m on situation 9 (different random streams). A sharper likelihood (``cues.alpha`` 0.5)
 halves the one-step error of MF but makes tracks lock onto the wrong place more often, and the
 mean CLE of AF and MF got worse on situations 1-4 and 8 (seed 7); ``alpha`` stays 1.
+
+**Why the update is weak, and what was tried (seed 7).** The best-weighted particle is about 0.3 m
+from the target whether the tracker's check accepts the update or not, and the window at the true
+position would pass the check in about three of four rejected frames: the cues do see the target,
+but the prediction the particles come from is wide (median position spread, sqrt of the trace,
+1.6-1.9 m), and the many background particles, each weighted about e^-3 to e^-5 of one on the
+target under MF, pull the weighted mean of eq. (8) toward the middle of the cloud (posterior mass
+within 0.4 m of the target: 67 % in accepted, 14 % in rejected MF updates). A narrower prediction
+(``motion.noise`` 0.004 -> 0.001, :class:`~sonar_tracking.core.gpf.config.MotionConfig`) was the one
+change that helped. Not kept, all measured on situations 8-11 (30 runs): particles drawn partly
+around the segmented regions in the gate (an importance function q of eqs. 6-7, weights likelihood x
+prior / q: the same posterior, so the same bias); with ``alpha`` 0.6-0.8 as well (MF and AF lock onto
+the other target or clutter: a track whose prediction has widened to 1.8 m moves 5.6 m to a spot
+that matches the template); rejecting an update whose window matches a nearby track's template
+better, or the worse of two tracks updated onto one target (both about neutral: the templates of
+crossing targets are too alike, mean d^2 0.2-0.9 to the wrong target against 1.5-5 to background);
+a 0.5 m window (sigma_i and T_i recalibrated; worse); eq. (18)'s switch on the absolute spread
+``Delta_i`` (the flat cues f17, f20 make it a test of the prediction's width; not better).
 """
 from __future__ import annotations
 
