@@ -16,10 +16,13 @@ from ..fls import PAPER_FEATURES
 from ..fls.windows import WINDOW_SHAPE_FEATURES
 
 __all__ = ['MotionConfig', 'CueConfig', 'FusionConfig', 'BirthConfig', 'LostConfig', 'TemplateConfig',
-           'GpfConfig', 'FUSION_MODES', 'PAPER_INITIAL_VARIANCE_PX', 'PAPER_PIXEL']
+           'GpfConfig', 'FUSION_MODES', 'FUSION_SWITCHES', 'PAPER_INITIAL_VARIANCE_PX', 'PAPER_PIXEL']
 
 #: Fusion strategies: adaptive (eq. 18), multiplicative (eq. 15), weighted (eq. 14).
 FUSION_MODES = ('af', 'mf', 'wf')
+#: How adaptive fusion chooses: eq. (18) alone, or eq. (18) and WF while another track is inside
+#: the particle cloud (:mod:`.fusion`).
+FUSION_SWITCHES = ('cues', 'crossing')
 
 #: §4.2.3 step 1: initial particles N(x; x_target, 45), N(y; y_target, 40), variances in the
 #: paper's image pixels (x across the image, y along range).
@@ -93,6 +96,12 @@ class FusionConfig(Config):
                                             'to their unweighted spread); 0 = the cue\'s calibrated value '
                                             '(sonar_tracking.core.gpf.cues); one value for every cue or one per cue',
                                             low=0.0, high=1e6)
+    switch: str = setting('crossing', 'how af chooses: cues = eq. (18) alone (every cue reliable -> MF); crossing = '
+                          'eq. (18), but WF while another track\'s prediction is inside the particle cloud '
+                          '(sonar_tracking.core.gpf.fusion)', choices=FUSION_SWITCHES)
+    gate: float = setting(9.21, 'switch crossing: another track is inside the cloud when its predicted position is '
+                          'within this squared Mahalanobis distance of the track\'s prediction (9.21: 99 %)',
+                          low=0.0, high=1e6, low_open=True)
 
     def validate(self) -> None:
         if not self.thresholds:

@@ -5,7 +5,8 @@ Per frame at time t (§4.2.3):
 1. every track is predicted to t (GPF: eqs. 9-12; SIR: its particles moved by the motion model);
 2. every track is updated on the image (step 2): particles drawn from its prediction, each
    particle's window features compared with the track's template per cue (eq. 13,
-   :mod:`.cues`), the cues fused (:mod:`.fusion`: ``fusion.mode`` af, mf or wf), the weights
+   :mod:`.cues`), the cues fused (:mod:`.fusion`: ``fusion.mode`` af, mf or wf; af is WF while
+   another track's prediction is inside the track's cloud, ``fusion.switch``), the weights
    normalised and the posterior moments taken (:mod:`.gaussian`); when the estimate does not
    match the template the frame does not update the track and its covariance widens (step 3);
 3. templates follow the targets' aspect where that is safe, tracks lost too long end, regions no
@@ -32,7 +33,7 @@ from ..records import GPF_TRACK_DTYPE
 from . import sir
 from .config import GpfConfig
 from .cues import CueModel
-from .fusion import MF, WF, fuse, normalise_log
+from .fusion import MF, WF, fuse, normalise_log, second_target
 from .gaussian import floor_position, kalman_update, predict, sample_gaussian, weighted_moments
 from .management import (birth_covariance, blend_template, reseed_pairs, should_end, spaced, template_may_update,
                          unexplained, widen)
@@ -175,9 +176,10 @@ class GpfTracker:
         frame = self.prepare(img, grid)
         rep.empty_image = frame.empty
         wi = frame.windows
-        for tr in self.tracks:
+        predicted = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)   # before any update
+        for i, tr in enumerate(self.tracks):
             tr.stamp = float(stamp)
-            self.update_track(tr, frame)
+            self.update_track(tr, frame, np.delete(predicted, i, axis=0))
             rep.seen += tr.seen
             rep.missed += not tr.seen
         t2 = time.perf_counter()
@@ -226,13 +228,14 @@ class GpfTracker:
         else:
             tr.mean, tr.cov = predict(tr.mean, tr.cov, dt, q, k, self.rng)
 
-    def update_track(self, tr: GpfTrack, frame: Frame) -> None:
+    def update_track(self, tr: GpfTrack, frame: Frame, others: np.ndarray | None = None) -> None:
         """Update one (predicted) track on a prepared frame (step 2 of §4.2.3); a frame without data
-        or without the target is a miss (step 3)."""
+        or without the target is a miss (step 3). ``others (N, 2)``: the other tracks' predicted
+        positions, for the ``crossing`` switch of adaptive fusion (:mod:`.fusion`)."""
         if frame.windows is None:
             self._miss(tr)
         else:
-            self._update(tr, frame)
+            self._update(tr, frame, others)
 
     def _miss(self, tr: GpfTrack) -> None:
         tr.seen = False
@@ -241,7 +244,7 @@ class GpfTracker:
         if self.method == 'sir':
             tr.particles = sir.spread(tr.particles, tr.weights, self.config.lost.inflation, tr.cov)
 
-    def _update(self, tr: GpfTrack, frame: Frame) -> None:
+    def _update(self, tr: GpfTrack, frame: Frame, others: np.ndarray | None = None) -> None:
         wi, grid, res = frame.windows, frame.grid, frame.grid.resolution
         if tr.template is None:   # the cue set changed: measure the template where the track is
             tr.template = self.cues.values(wi, grid, tr.mean[None, :2])[:, 0]
@@ -251,7 +254,9 @@ class GpfTracker:
         else:
             particles = sample_gaussian(tr.mean, tr.cov, k, self.rng)
         d2 = self.cues.distances2(self.cues.values(wi, grid, particles[:, :2]), tr.template)
-        fused = fuse(self.cues.log_likelihoods(d2), particles[:, :2], self.thresholds, self.config.fusion.mode)
+        f = self.config.fusion
+        crowded = f.switch == 'crossing' and second_target(tr.mean, tr.cov, others, f.gate)
+        fused = fuse(self.cues.log_likelihoods(d2), particles[:, :2], self.thresholds, f.mode, crowded)
         if self.method == 'sir':
             w = normalise_log(np.log(tr.weights) + fused.log_likelihood)
         else:

@@ -146,6 +146,29 @@ def test_adaptive_switch_of_eq_18():
         fusion.fuse(np.stack([peaked]), pos, th[:1], 'sum')
 
 
+def test_crossing_switch_gives_wf_when_a_second_target_is_in_the_cloud():
+    # Two targets in the cloud, every cue sharp on both: eq. 18 alone says MF (each cue concentrates
+    # the particles), the crossing switch says WF while the other track's prediction is inside.
+    rng = np.random.default_rng(9)
+    mean, cov = np.array([0.0, 0.0]), np.diag([1.0, 1.0])
+    pos = rng.multivariate_normal(mean, cov, 300)
+    blobs = [np.array([-0.6, 0.0]), np.array([0.6, 0.0])]
+    peak = np.logaddexp(*[-0.5 * np.sum((pos - b) ** 2, axis=1) / 0.02 for b in blobs])
+    th = np.array([2.0, 2.0])
+    log_p = np.stack([peak, peak])
+    assert fusion.fuse(log_p, pos, th, 'af').mode == fusion.MF
+    inside = np.array([[0.6, 0.0]])
+    outside = np.array([[4.0, 0.0]])                                   # d^2 16 > 9.21
+    assert fusion.second_target(mean, cov, inside, 9.21)
+    assert not fusion.second_target(mean, cov, outside, 9.21)
+    assert not fusion.second_target(mean, cov, None, 9.21)
+    assert not fusion.second_target(mean, cov, np.zeros((0, 2)), 9.21)
+    assert fusion.second_target(mean, np.diag([9.0, 1.0]), outside, 9.21)   # a wide cloud reaches it
+    crowded = fusion.fuse(log_p, pos, th, 'af', crowded=True)
+    assert crowded.mode == fusion.WF and crowded.a.sum() == pytest.approx(1.0)
+    assert fusion.fuse(log_p, pos, th, 'mf', crowded=True).mode == fusion.MF    # fixed modes ignore it
+
+
 def test_fuzzy_memberships_rules_and_weights():
     u = np.linspace(-1, 1, 41)
     mu = fuzzy.memberships(u)

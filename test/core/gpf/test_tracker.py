@@ -183,6 +183,36 @@ def test_same_seed_same_tracks():
     assert all(np.array_equal(x, y) for x, y in zip(a, b))
 
 
+def test_adaptive_fusion_is_weighted_while_another_track_is_in_the_cloud():
+    # The crossing switch: another track's prediction inside this track's cloud makes af WF (tr.a
+    # holds the fuzzy weights of eq. 14; None after MF); outside the gate, or with switch cues,
+    # eq. 18 decides alone.
+    rng = np.random.default_rng(5)
+    frames = [(image(rng, walk(k)), regions(walk(k))) for k in range(4)]
+
+    def update(config, others, seed=6):
+        t = GpfTracker(config, np.random.default_rng(2))
+        run(t, frames[:3])
+        tr = t.tracks[0]
+        t.predict_track(tr, 5.0)
+        t.rng = np.random.default_rng(seed)
+        t.update_track(tr, t.prepare(frames[3][0], GRID), others)
+        return tr
+
+    low = {'fusion.thresholds': [0.01]}          # every cue reliable: eq. 18 alone says MF
+    tr = update(GpfConfig.from_flat(low), None)
+    inside = tr.mean[None, :2] + np.array([[0.3, -0.2]])
+    far = tr.mean[None, :2] + np.array([[8.0, 0.0]])
+    for seed in range(4):
+        assert update(GpfConfig.from_flat(low), None, seed).a is None
+        assert update(GpfConfig.from_flat(low), far, seed).a is None
+        assert update(GpfConfig.from_flat({**low, 'fusion.switch': 'cues'}), inside, seed).a is None
+        assert update(GpfConfig.from_flat(low), inside, seed).a is not None
+        assert update(GpfConfig.from_flat({**low, 'fusion.gate': 0.01}), inside, seed).a is None
+    with pytest.raises(ConfigError):
+        GpfConfig.from_flat({'fusion.switch': 'bimodal'})
+
+
 def test_sir_baseline_and_ekf_baseline_follow_the_target():
     rng = np.random.default_rng(18)
     frames = [(image(rng, walk(k)), regions(walk(k))) for k in range(12)]
