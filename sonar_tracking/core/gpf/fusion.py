@@ -58,7 +58,8 @@ from scipy.special import logsumexp
 
 from .fuzzy import fuzzy_weights
 
-__all__ = ['MF', 'WF', 'second_target', 'normalise_log', 'cue_weights', 'cue_spreads', 'multiplicative', 'weighted', 'Fused', 'fuse']
+__all__ = ['MF', 'WF', 'second_target', 'normalise_log', 'cue_weights', 'cue_spreads', 'multiplicative', 'weighted',
+           'Fused', 'fuse']
 
 #: Values of GPF_TRACK_DTYPE's ``fusion`` field.
 MF, WF = 0, 1
