@@ -145,3 +145,18 @@ def test_results_do_not_depend_on_the_number_of_processes():
     two = run_study(study, 2, 5, jobs=2)
     assert one['methods'] == two['methods']
     assert one['example'] == two['example']
+
+
+def test_methods_share_the_random_stream_so_equal_decisions_give_equal_tracks():
+    """Common random numbers: AF that always chooses WF (thresholds no cue can reach) tracks exactly
+    as WF does; MF, deciding differently, does not."""
+    from sonar_tracking.core.eval.fls_frames import simulate_tracking_frames
+    from sonar_tracking.core.eval.fls_study import FlsStudy, run_methods
+    from sonar_tracking.core.gpf import GpfConfig
+    frames = simulate_tracking_frames('fls8', 3)[:6]
+    study = FlsStudy('fls8', ('af', 'mf', 'wf'), GpfConfig.from_flat({'fusion.thresholds': (1e6,)}))
+    out = run_methods(study, frames, np.random.SeedSequence(11))
+    assert any(len(r) for r in out['wf'])
+    for a, w in zip(out['af'], out['wf']):
+        np.testing.assert_array_equal(a, w)
+    assert any(len(a) != len(m) or not np.array_equal(a, m) for a, m in zip(out['af'], out['mf']))
