@@ -33,7 +33,7 @@ class Harness:
                                               lambda m: self.thresholds.append(m.data), LATCHED)]
         self.sim = Simulator(SimConfig.for_scenario('scenario1'), np.random.default_rng(0))
         ros.wait(lambda: self.pub_img.get_subscription_count() > 0 and self.pub_info.get_subscription_count() > 0
-                 and self.thresholds, 30.0, 'the detector to come up')
+                 and self.thresholds and self.subs[0].get_publisher_count() > 0, 30.0, 'the detector to come up')
 
     def send(self, stamp_s: float, image=None, info=None):
         s = self.sim.next_sector()

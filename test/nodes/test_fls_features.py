@@ -119,7 +119,8 @@ def test_bad_input_is_dropped_with_a_reason_and_the_node_keeps_running(ros, laun
     qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
     pub_img = ros.node.create_publisher(Image, '/sonar/sector', qos)
     pub_info = ros.node.create_publisher(LaserScan, '/sonar/sector_info', qos)
-    ros.wait(lambda: pub_img.get_subscription_count() and pub_info.get_subscription_count(), 20.0, 'the node')
+    ros.wait(lambda: pub_img.get_subscription_count() and pub_info.get_subscription_count()
+             and all(s.get_publisher_count() for s in subs), 20.0, 'the node')
     sim = Simulator(SimConfig.for_scenario('fls14', snr_db=25.0), np.random.default_rng(0))
     good = [sim.next_sector() for _ in range(24)]  # two sweeps and more
 

@@ -59,8 +59,9 @@ class Harness:
         self.subs = [node.create_subscription(PointCloud2, '/gpf/tracks', self.tracks.append, KEEP_ALL),
                      node.create_subscription(MarkerArray, '/gpf/tracks/markers', self.markers.append, KEEP_ALL),
                      node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, KEEP_ALL)]
+        # Our readers must be matched with the node's writers too, or its first outputs are lost.
         ros.wait(lambda: all(p.get_subscription_count() > 0 for p in (self.pub_info, self.pub_image, self.pub_regions))
-                 and node.count_publishers('/gpf/tracks') > 0, 30.0, 'the tracker to come up')
+                 and all(s.get_publisher_count() > 0 for s in self.subs), 30.0, 'the tracker to come up')
 
     def _on_diag(self, msg):
         self.diagnostics.extend(s for s in msg.status if s.name.startswith('gpf_tracker'))

@@ -52,8 +52,9 @@ class Harness:
         self.subs = [node.create_subscription(PointCloud2, '/tracks', self.tracks.append, KEEP_ALL),
                      node.create_subscription(MarkerArray, '/tracks/markers', self.markers.append, KEEP_ALL),
                      node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, KEEP_ALL)]
-        ros.wait(lambda: self.pub.get_subscription_count() > 0 and node.count_publishers('/tracks') > 0
-                 and node.count_publishers('/tracks/markers') > 0, 30.0, 'the tracker to come up')
+        # Our readers must be matched with the node's writers too, or its first outputs are lost.
+        ros.wait(lambda: self.pub.get_subscription_count() > 0 and all(s.get_publisher_count() > 0 for s in self.subs),
+                 30.0, 'the tracker to come up')
 
     def _on_diag(self, msg):
         self.diagnostics.extend(s for s in msg.status if s.name.startswith('imm_ipda_tracker'))
