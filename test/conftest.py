@@ -84,7 +84,8 @@ def ros(graph_node):
 
 @pytest.fixture
 def launch():
-    """Start package nodes as child processes (``python -m sonar_tracking.nodes.NAME``); killed at teardown."""
+    """Start package nodes as child processes (``python -m sonar_tracking.nodes.NAME``); ``launch.stop(proc)``
+    interrupts one and returns its log; all are stopped at teardown."""
     import signal
     import subprocess
     import sys
@@ -102,12 +103,18 @@ def launch():
         procs.append(proc)
         return proc
 
+    def stop(proc: subprocess.Popen, timeout: float = 15.0) -> str:
+        """SIGINT the node's process group, SIGKILL if it has not ended after ``timeout``; its stderr."""
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            _, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            _, err = proc.communicate()
+        return err
+
+    start.stop = stop
     yield start
     for proc in procs:
         if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGINT)
-            try:
-                proc.wait(10)
-            except Exception:
-                os.killpg(proc.pid, signal.SIGKILL)
-                proc.wait()
+            stop(proc, 10.0)

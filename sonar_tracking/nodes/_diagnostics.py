@@ -38,11 +38,21 @@ class StageDiagnostics:
         """Count a dropped message and log why: each kind of problem at once, then at most once a
         second (a sensor sending bad data all the time must not flood the log, nor hide a new fault)."""
         self.drop(reason)
-        key = reason + ':' + re.sub(r'[-+0-9.e]+', '#', text)
+        self.log(logger, reason + ':' + re.sub(r'[-+0-9.e]+', '#', text), text, level)
+
+    def log(self, logger, key: str, text: str, level: str = 'error') -> None:
+        """Log ``text`` at ``level`` unless the same ``key`` was logged in the last second (unlike
+        rclpy's per-call-site throttle, different problems from one place all get through)."""
         now = time.monotonic()
         if now - self._last_report.get(key, -math.inf) >= 1.0:
             self._last_report[key] = now
-            getattr(logger, level)(text)
+            # One call site per severity: rclpy refuses a severity change at one call site.
+            if level == 'error':
+                logger.error(text)
+            elif level == 'warning':
+                logger.warning(text)
+            else:
+                logger.info(text)
 
     def done(self, started: float) -> None:
         """Count a processed message whose work began at ``time.perf_counter()`` = ``started``."""

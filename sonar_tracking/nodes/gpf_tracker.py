@@ -148,7 +148,6 @@ class GpfTrackerNode(Node):
         self.resets = 0
         self.processed = 0
         self.diag = StageDiagnostics('gpf_tracker: tracking')
-        self._said: dict[str, float] = {}
 
         inputs = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
         self.create_subscription(Image, '/fls/image', lambda m: self._on_part('image', m), inputs)
@@ -266,14 +265,7 @@ class GpfTrackerNode(Node):
         """Count a drop under ``reason`` (if given) and log ``text``, each ``key`` at most once a second."""
         if reason is not None:
             self.diag.drop(reason)
-        now = time.monotonic()
-        if now - self._said.get(key, -math.inf) < 1.0:
-            return
-        self._said[key] = now
-        if severity == 'error':
-            self.get_logger().error(text)
-        else:
-            self.get_logger().warning(text)
+        self.diag.log(self.get_logger(), key, text, severity)
 
     def _publish_diagnostics(self) -> None:
         self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))

@@ -22,7 +22,6 @@ Bad input never stops the node:
 """
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -98,7 +97,6 @@ class ImmIpdaTrackerNode(Node):
         self.rejected_rows = 0
         self.resets = 0
         self._warned: set[str] = set()
-        self._said: dict[str, float] = {}
         self.diag = StageDiagnostics('imm_ipda_tracker: tracking')
 
         inputs = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
@@ -199,21 +197,9 @@ class ImmIpdaTrackerNode(Node):
         return values
 
     def _say(self, severity: str, text: str, key: str | None = None) -> None:
-        """Log ``text`` (``'error'`` or ``'warning'``) unless the same ``key`` (default: the text)
-        was logged in the last second.
-
-        Unlike rclpy's per-call-site throttle, different reasons from one place all get through,
-        while a looping bag repeating the same fault does not flood the log.
-        """
-        key = text if key is None else key
-        now = time.monotonic()
-        if now - self._said.get(key, -math.inf) < 1.0:
-            return
-        self._said[key] = now
-        if severity == 'error':
-            self.get_logger().error(text)
-        else:
-            self.get_logger().warning(text)
+        """Log ``text`` (``'error'`` or ``'warning'``) unless the same ``key`` (default: the text) was
+        logged in the last second: a looping bag repeating one fault does not flood the log."""
+        self.diag.log(self.get_logger(), text if key is None else key, text, severity)
 
     def _warn_once(self, text: str) -> None:
         if text not in self._warned:

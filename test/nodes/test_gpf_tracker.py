@@ -3,9 +3,6 @@ what the node must survive (an empty image, a frame without regions, bad input),
 from __future__ import annotations
 
 import math
-import os
-import signal
-import subprocess
 import time
 from pathlib import Path
 
@@ -45,12 +42,12 @@ def regions_at(*points) -> np.ndarray:
 class Harness:
     """Publishes FLS frames to the tracker and collects its outputs."""
 
-    def __init__(self, ros, proc):
+    def __init__(self, ros, launch, proc):
         from diagnostic_msgs.msg import DiagnosticArray
         from nav_msgs.msg import MapMetaData
         from sensor_msgs.msg import Image, PointCloud2
         from visualization_msgs.msg import MarkerArray
-        self.ros, self.proc = ros, proc
+        self.ros, self.launch, self.proc = ros, launch, proc
         node = ros.node
         self.pub_info = node.create_publisher(MapMetaData, '/fls/image_info', KEEP_ALL)
         self.pub_image = node.create_publisher(Image, '/fls/image', KEEP_ALL)
@@ -80,13 +77,8 @@ class Harness:
         self.ros.wait(lambda: len(self.tracks) >= n, timeout, f'{n} /gpf/tracks messages')
 
     def stop(self) -> str:
-        os.killpg(self.proc.pid, signal.SIGINT)
-        try:
-            _, err = self.proc.communicate(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            _, err = self.proc.communicate()
-        return err
+        """SIGINT the node; its stderr (the log)."""
+        return self.launch.stop(self.proc)
 
     def close(self):
         for s in self.subs:
@@ -98,7 +90,7 @@ class Harness:
 @pytest.fixture
 def tracker(ros, launch, request):
     proc = launch('gpf_tracker', *getattr(request, 'param', ()))
-    h = Harness(ros, proc)
+    h = Harness(ros, launch, proc)
     yield h
     h.close()
 

@@ -1,9 +1,6 @@
 """The imm_ipda_tracker node over real DDS: tracks from synthetic /detections, outputs, parameters, bad input."""
 from __future__ import annotations
 
-import os
-import signal
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -39,12 +36,12 @@ def detections(rng, truth_xy, n_clutter, half=300.0):
 class Harness:
     """Publishes /detections (and odometry) to the tracker and collects its outputs."""
 
-    def __init__(self, ros, proc):
+    def __init__(self, ros, launch, proc):
         from diagnostic_msgs.msg import DiagnosticArray
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import PointCloud2
         from visualization_msgs.msg import MarkerArray
-        self.ros, self.proc = ros, proc
+        self.ros, self.launch, self.proc = ros, launch, proc
         node = ros.node
         self.pub = node.create_publisher(PointCloud2, '/detections', KEEP_ALL)
         self.pub_odom = node.create_publisher(Odometry, '/platform/odometry', KEEP_ALL)
@@ -68,13 +65,7 @@ class Harness:
 
     def stop(self) -> str:
         """SIGINT the node; its stderr (the log)."""
-        os.killpg(self.proc.pid, signal.SIGINT)
-        try:
-            _, err = self.proc.communicate(timeout=15)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            _, err = self.proc.communicate()
-        return err
+        return self.launch.stop(self.proc)
 
     def close(self):
         for s in self.subs:
@@ -93,7 +84,7 @@ def values(parameter_values) -> list:
 def tracker(ros, launch, request):
     params = getattr(request, 'param', ())
     proc = launch('imm_ipda_tracker', *params)
-    h = Harness(ros, proc)
+    h = Harness(ros, launch, proc)
     yield h
     h.close()
 
