@@ -6,7 +6,6 @@ Runs spread over ``--jobs`` processes; the results depend only on ``--seed``.
 from __future__ import annotations
 
 import datetime
-import json
 import math
 import shlex
 import sys
@@ -19,6 +18,8 @@ import yaml
 from sonar_tracking.core.eval import algorithm1
 from sonar_tracking.core.eval.esc_study import PAPER_DESIRED_DENSITY, StudyConfig, parse_methods, run_once, summarise
 from sonar_tracking.core.eval.montecarlo import Progress, default_jobs, run_monte_carlo
+
+from ._output import write_json, write_plot
 
 __all__ = ['add_scenario_arguments', 'main_scenario', 'add_desired_density_arguments', 'main_desired_density',
            'plot_study']
@@ -78,12 +79,9 @@ def main_scenario(args) -> int:
         print(f'{name:10s}{np.mean(m["cttr"][half:]):15.3f}{(np.mean(rmse) if rmse else math.nan):15.2f}'
               f'{m["threshold"][-1]:11.3f}{m["cft_rate"]:10.4f}')
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=1) + '\n')
-        print(f'wrote {args.json}')
+        write_json(args.json, result)
     if args.plot:
-        plot_study(result, args.plot)
-        print(f'wrote {args.plot}')
+        write_plot(args.plot, plot_study, result)
     return 0
 
 
@@ -163,10 +161,8 @@ def main_desired_density(args) -> int:
     command = 'sonar_eval desired-density ' + ' '.join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 2 \
         else 'sonar_eval desired-density'
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({'runs': args.runs, 'scans': args.scans, 'models': args.models,
-                                         'wall_s': wall, 'snr': details}, indent=1) + '\n')
-        print(f'wrote {args.json}')
+        write_json(args.json, {'runs': args.runs, 'scans': args.scans, 'models': args.models, 'wall_s': wall,
+                               'snr': details})
     if args.table:
         header = (f'# Desired clutter density rho_D against SNR (ESC paper Algorithm 1), made by:\n'
                   f'#   {command}\n# on {datetime.date.today().isoformat()}, {wall:.0f} s; tracker modes '

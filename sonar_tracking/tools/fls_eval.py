@@ -16,7 +16,6 @@ trajectories and CLE curves per target in the style of Figures 13, 16 and 19.
 """
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -24,6 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ._output import write_json, write_plot
 
 __all__ = ['add_arguments', 'main_args', 'run_study', 'study_for', 'plot']
 
@@ -179,12 +180,9 @@ def main_args(args: Any) -> int:
         cells = ''.join(f'{_fmt(c):>10s}{lf:9.1f}' for c, lf in zip(r['cle_mean'], r['lost_frames']))
         ident = r.get('identity_kept_rate')
         print(f'{m:8s}{cells}{("n/a" if ident is None else f"{ident:.0%}"):>15s}')
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(result, indent=1, allow_nan=False) + '\n')
-    print(f'wrote {args.json}')
+    write_json(args.json, result, allow_nan=False)
     if args.plot:
-        plot(result, args.plot)
-        print(f'wrote {args.plot}')
+        write_plot(args.plot, plot, result)
     return 0
 
 

@@ -18,7 +18,6 @@ enough clutter regions exist to learn the clutter class (at the default almost n
 """
 from __future__ import annotations
 
-import json
 import math
 import sys
 import time
@@ -26,6 +25,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from ._output import write_json, write_plot
 
 __all__ = ['add_arguments', 'main_args', 'run_selection']
 
@@ -253,10 +254,7 @@ def main_args(args: Any) -> int:
     print(f'  five features: {s["five_feature_test_error"]:.3f}; all 30: {s["all_features_test_error"]:.3f}')
     print(f'  most frequent first five: {s["consensus_top5"]}; paper {s["paper_features"]}: '
           f'{s["paper_test_error"]:.3f}')
-    args.json.parent.mkdir(parents=True, exist_ok=True)
-    args.json.write_text(json.dumps(result, indent=1) + '\n')
-    print(f'wrote {args.json}')
+    write_json(args.json, result)
     if args.plot:
-        plot(result, args.plot)
-        print(f'wrote {args.plot}')
+        write_plot(args.plot, plot, result)
     return 0
