@@ -68,9 +68,21 @@ def ros(graph_node):
             raise AssertionError(f'timed out after {timeout} s waiting for {what}')
 
         @staticmethod
-        def result(future, timeout=20.0):
-            Ros.wait(future.done, timeout, 'a service response')
-            return future.result()
+        def call(client, request, timeout=20.0, resend=2.0):
+            """The response to ``request``, sent again every ``resend`` seconds until one comes:
+            Fast DDS drops a response when the server has not yet matched the client's reader
+            (ros2/rmw_fastrtps#390, #467), so a first call right after wait_for_service can go
+            unanswered. Only for idempotent requests (parameters, enable, reset)."""
+            deadline = time.monotonic() + timeout
+            while True:
+                future = client.call_async(request)
+                try:
+                    Ros.wait(future.done, min(resend, max(deadline - time.monotonic(), 0.0)), 'a service response')
+                    return future.result()
+                except AssertionError:
+                    client.remove_pending_request(future)
+                    if time.monotonic() >= deadline:
+                        raise AssertionError(f'timed out after {timeout} s waiting for a service response') from None
 
     yield Ros
     executor.shutdown(timeout_sec=2.0)

@@ -67,7 +67,8 @@ def call(ros, srv_type, name, request):
     client = ros.node.create_client(srv_type, name)
     assert client.wait_for_service(timeout_sec=20.0), name
     try:
-        return ros.result(client.call_async(request))
+        # A reset is not idempotent (its reply reports the state it reset from): never sent twice.
+        return ros.call(client, request, resend=20.0 if srv_type.__name__ == 'Trigger' else 2.0)
     finally:
         ros.node.destroy_client(client)
 
@@ -209,7 +210,7 @@ def test_desired_density_from_the_table(ros, launch):
     client = ros.node.create_client(SetParameters, '/active_detector/set_parameters')
     assert client.wait_for_service(timeout_sec=20.0)
     req = SetParameters.Request(parameters=[Parameter('esc.snr_db', value=40.0).to_parameter_msg()])
-    r = ros.result(client.call_async(req)).results[0]
+    r = ros.call(client, req).results[0]
     assert not r.successful and 'outside the table' in r.reason
     ros.node.destroy_client(client)
     proc.send_signal(2)

@@ -175,7 +175,7 @@ def test_parameters_refused_with_reasons_or_applied(ros, launch):
 
     def set_(name, value):
         req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        return ros.result(client.call_async(req)).results[0]
+        return ros.call(client, req).results[0]
 
     r = set_('segment.seed_db', 1.0)
     assert not r.successful and 'grow_db' in r.reason

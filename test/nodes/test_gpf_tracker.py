@@ -213,10 +213,10 @@ def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker)
 
     def set_(name, value):
         req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        return ros.result(setc.call_async(req)).results[0]
+        return ros.call(setc, req).results[0]
 
     def get(*names):
-        res = ros.result(getc.call_async(GetParameters.Request(names=list(names)))).values
+        res = ros.call(getc, GetParameters.Request(names=list(names))).values
         return [v.integer_value if v.type == 2 else v.double_value if v.type == 3 else v.string_value
                 if v.type == 4 else list(v.double_array_value) for v in res]
 

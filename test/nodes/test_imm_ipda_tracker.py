@@ -192,10 +192,10 @@ def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker)
 
     def set_(name, value):
         req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        return ros.result(setc.call_async(req)).results[0]
+        return ros.call(setc, req).results[0]
 
     def get(*names):
-        return values(ros.result(getc.call_async(GetParameters.Request(names=list(names)))).values)
+        return values(ros.call(getc, GetParameters.Request(names=list(names))).values)
 
     # Start-up values that break a rule were replaced by the defaults; a good one was kept.
     assert get('detection.probability', 'imm.models', 'marker_scale') == [0.9, 'cv,ccw,cw', 5.0]
@@ -228,7 +228,7 @@ def test_parameter_file_holds_the_paper_values(ros, launch):
     client = ros.node.create_client(GetParameters, '/imm_ipda_tracker/get_parameters')
     assert client.wait_for_service(timeout_sec=20.0)
     names = ['imm.mode_stay_probability', 'imm.turn_rate_ccw_deg', 'detection.probability', 'clutter.source']
-    res = ros.result(client.call_async(GetParameters.Request(names=names)))
+    res = ros.call(client, GetParameters.Request(names=names))
     assert values(res.values) == [0.98, 3.0, 0.57, 'detection']
     assert proc.poll() is None
     ros.node.destroy_client(client)

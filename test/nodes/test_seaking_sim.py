@@ -104,7 +104,7 @@ def test_runtime_parameter_changes_refused_with_reason_or_applied(ros, launch):
 
     def set_(name, value):
         req = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-        return ros.result(client.call_async(req)).results[0]
+        return ros.call(client, req).results[0]
 
     r = set_('clutter_lambda', -1.0)
     assert not r.successful and 'clutter_lambda' in r.reason
