@@ -11,7 +11,9 @@ weighted (wf) fusion, the SIR particle filter (pf) and the EKF on the regions (e
 
 The JSON holds ``{"methods": {NAME: {"cle_mean": [per target], "cle": [[per frame] per target],
 "lost_frames": [per target], ...}}, "wall_s": t}`` plus the frame stamps, target ids, identity
-rates through a crossing (situations 8-11, 13 and the sea trial) and the settings; the plot shows
+rates through a crossing (situations 8-11, 13 and the sea trial), every run's mean CLE
+(``cle_run``) and, for every method after the first, the paired difference of those to the first
+method's with its 95 % confidence interval (``paired_with_first``), and the settings; the plot shows
 trajectories and CLE curves per target in the style of Figures 13, 16 and 19.
 """
 from __future__ import annotations
@@ -153,6 +155,14 @@ def _fmt(v) -> str:
     return 'n/a' if v is None else f'{v:.2f}'
 
 
+def _paired(p: dict | None) -> str:
+    if p is None:
+        return ''
+    if p['difference'] is None:
+        return 'n/a'
+    return f'{p["difference"]:+.3f}' + ('' if p['ci95'] is None else f' +/- {p["ci95"]:.3f}')
+
+
 def main_args(args: Any) -> int:
     """Run ``sonar_eval fls`` with parsed arguments; returns the exit status."""
     from sonar_tracking.core.eval.fls_study import parse_methods
@@ -175,11 +185,14 @@ def main_args(args: Any) -> int:
     print(f'{label} ({study.scenario}): {args.runs} runs in {result["wall_s"]:.1f} s on {args.jobs} processes')
     ids = result['target_ids']
     head = ''.join(f'{"CLE t" + str(i):>10s}{"lost t" + str(i):>9s}' for i in ids)
-    print(f'{"method":8s}{head}{"identity kept":>15s}')
+    first = methods[0]
+    print(f'{"method":8s}{head}{"identity kept":>15s}{first + " - method [m]":>22s}')
     for m, r in result['methods'].items():
         cells = ''.join(f'{_fmt(c):>10s}{lf:9.1f}' for c, lf in zip(r['cle_mean'], r['lost_frames']))
         ident = r.get('identity_kept_rate')
-        print(f'{m:8s}{cells}{("n/a" if ident is None else f"{ident:.0%}"):>15s}')
+        print(f'{m:8s}{cells}{("n/a" if ident is None else f"{ident:.0%}"):>15s}{_paired(r.get("paired_with_first")):>22s}')
+    if len(methods) > 1:
+        print(f'{first} - method: paired difference of the runs\' mean CLE, with its 95 % confidence interval')
     write_json(args.json, result, allow_nan=False)
     if args.plot:
         write_plot(args.plot, plot, result)

@@ -24,8 +24,13 @@ def test_situation_json_and_plot(tmp_path, capsys):
         assert all(v is None or v >= 0 for row in m['cle'] for v in row)
         assert all(0 <= lf <= n_frames for lf in m['lost_frames'])
         assert 'identity_kept_rate' in m                  # situation 8 crosses
+        assert len(m['cle_run']) == 2
+    for name in ('mf', 'ekf'):
+        p = data['methods'][name]['paired_with_first']
+        assert p['first'] == 'af' and p['runs'] <= 2
+    printed = capsys.readouterr().out
     assert png.stat().st_size > 10_000
-    assert 'identity kept' in capsys.readouterr().out
+    assert 'identity kept' in printed and 'af - method' in printed
 
 
 def test_sea_trial_preset_settings():

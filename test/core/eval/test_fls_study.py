@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from sonar_tracking.core.eval.fls_frames import TrackingFrame
-from sonar_tracking.core.eval.fls_study import (crossing_window, parse_methods, score_run, situation_scenario,
-                                                summarise, switch_thresholds)
+from sonar_tracking.core.eval.fls_study import (crossing_window, paired_difference, parse_methods, run_cle,
+                                                score_run, situation_scenario, summarise, switch_thresholds)
 from sonar_tracking.core.records import GPF_TRACK_DTYPE
 
 GATE, CROSS = 1.5, 2.0
@@ -114,6 +114,37 @@ def test_summarise_means_lost_frames_and_identity_rate():
     assert r['lost_frames'] == pytest.approx([(1 + 2 + 3) / 3, 0.0])
     assert r['identity_runs'] == 2 and r['identity_kept_rate'] == pytest.approx(0.5)
     assert r['identity_kept_rate_per_target'] == pytest.approx([0.5, 1.0])
+
+
+def test_run_cle_averages_targets_over_their_defined_frames():
+    assert run_cle(np.array([[0.2, np.nan, 0.4], [1.0, 1.0, 1.0]])) == pytest.approx((0.3 + 1.0) / 2)
+    assert run_cle(np.array([[np.nan, np.nan], [0.5, 0.7]])) == pytest.approx(0.6)
+    assert math.isnan(run_cle(np.full((2, 3), np.nan)))
+
+
+def test_paired_difference_mean_and_student_t_interval():
+    a = np.array([1.0, 2.0, 3.0, np.nan, 5.0])
+    b = np.array([0.5, 2.5, 2.0, 1.0, np.nan])
+    p = paired_difference(a, b)                         # runs 0-2: differences 0.5, -0.5, 1.0
+    assert p['runs'] == 3 and p['difference'] == pytest.approx(1.0 / 3)
+    sd = np.std([0.5, -0.5, 1.0], ddof=1)
+    assert p['ci95'] == pytest.approx(4.302652729911275 * sd / math.sqrt(3))   # t(0.975, 2 dof)
+    assert paired_difference(np.array([1.0]), np.array([0.5])) == {'difference': 0.5, 'ci95': None, 'runs': 1}
+    assert paired_difference(np.array([np.nan]), np.array([0.5]))['difference'] is None
+
+
+def test_summarise_pairs_every_method_with_the_first_run_by_run():
+    class Study:
+        methods = ('af', 'wf')
+    runs = []
+    for af, wf in ((0.3, 0.4), (0.5, 0.5), (0.2, 0.6)):
+        r = _run([[af, af]], None)
+        r['scores']['wf'] = _run([[wf, wf]], None)['scores']['af']
+        runs.append(r)
+    out = summarise(Study, runs)
+    assert out['af']['cle_run'] == pytest.approx([0.3, 0.5, 0.2]) and 'paired_with_first' not in out['af']
+    p = out['wf']['paired_with_first']
+    assert p['first'] == 'af' and p['runs'] == 3 and p['difference'] == pytest.approx((-0.1 + 0.0 - 0.4) / 3)
 
 
 def test_switch_thresholds_meet_the_healthy_mf_rate():
