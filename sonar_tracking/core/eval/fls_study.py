@@ -58,6 +58,17 @@ better, or the worse of two tracks updated onto one target (both about neutral: 
 crossing targets are too alike, mean d^2 0.2-0.9 to the wrong target against 1.5-5 to background);
 a 0.5 m window (sigma_i and T_i recalibrated; worse); eq. (18)'s switch on the absolute spread
 ``Delta_i`` (the flat cues f17, f20 make it a test of the prediction's width; not better).
+
+**No per-frame switch beats WF on the crossings here (seed 7, 30 runs).** An oracle adaptive
+fusion that, in every update, takes whichever of MF and WF puts the posterior mean nearer the true
+target (the one nearest the prediction) has mean CLE 0.376 and 0.542 m on situations 8 and 10,
+against 0.350 and 0.501 m for WF (MF 0.494, 0.590); on situation 1 it is 0.703 m (MF 0.646, WF
+0.718). An MF update that is right in its own frame still leaves the track worse placed for the
+frames after, so choosing MF more cleverly cannot help. Also tried and not kept: stricter
+thresholds (the median to the 75th percentile of the healthy reliabilities: AF approaches WF, still
+0.01 m behind on 8 and 9), WF while a track is tentative or was lost in the previous frame,
+MF's mean with WF's covariance (MF worse still), a higher posterior floor (``min_std`` 0.25-0.35),
+and MF by default with WF within a wider crossing gate (up to d^2 < 100).
 """
 from __future__ import annotations
 
