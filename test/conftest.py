@@ -72,7 +72,8 @@ def ros(graph_node):
             """The response to ``request``, sent again every ``resend`` seconds until one comes:
             Fast DDS drops a response when the server has not yet matched the client's reader
             (ros2/rmw_fastrtps#390, #467), so a first call right after wait_for_service can go
-            unanswered. Only for idempotent requests (parameters, enable, reset)."""
+            unanswered. Only for idempotent requests (parameters, enable); give others
+            ``resend=timeout``."""
             deadline = time.monotonic() + timeout
             while True:
                 future = client.call_async(request)

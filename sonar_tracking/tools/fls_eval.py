@@ -190,7 +190,8 @@ def main_args(args: Any) -> int:
     for m, r in result['methods'].items():
         cells = ''.join(f'{_fmt(c):>10s}{lf:9.1f}' for c, lf in zip(r['cle_mean'], r['lost_frames']))
         ident = r.get('identity_kept_rate')
-        print(f'{m:8s}{cells}{("n/a" if ident is None else f"{ident:.0%}"):>15s}{_paired(r.get("paired_with_first")):>22s}')
+        ident = 'n/a' if ident is None else f'{ident:.0%}'
+        print(f'{m:8s}{cells}{ident:>15s}{_paired(r.get("paired_with_first")):>22s}')
     if len(methods) > 1:
         print(f'{first} - method: paired difference of the runs\' mean CLE, with its 95 % confidence interval')
     write_json(args.json, result, allow_nan=False)
