@@ -36,7 +36,7 @@ from sonar_tracking.core.sector import SectorGeometry
 
 from ._diagnostics import StageDiagnostics
 
-__all__ = ['SectorInputConfig', 'SectorInput', 'Pose']
+__all__ = ['SectorInputConfig', 'SectorInput', 'Pose', 'check_sonar_pose']
 
 Pose = tuple[float, float, float]
 
@@ -56,8 +56,13 @@ class SectorInputConfig(Config):
 
     def validate(self) -> None:
         super().validate()
-        if len(self.sonar_pose) != 3:
-            raise ConfigError(f'sonar_pose = {list(self.sonar_pose)} must be [x, y, yaw_deg]')
+        check_sonar_pose(self.sonar_pose)
+
+
+def check_sonar_pose(pose: tuple[float, ...]) -> None:
+    """ConfigError unless the static ``sonar_pose`` setting is ``[x, y, yaw_deg]``."""
+    if len(pose) != 3:
+        raise ConfigError(f'sonar_pose = {list(pose)} must be [x, y, yaw_deg]')
 
 
 class SectorInput:

@@ -46,12 +46,13 @@ from sensor_msgs.msg import Image, PointCloud2
 from visualization_msgs.msg import MarkerArray
 
 import msg_adapters as ma
-from sonar_tracking.core.config import ConfigError, setting
+from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
 from sonar_tracking.core.pose import PoseBuffer
 
 from ._diagnostics import StageDiagnostics
+from ._sector_input import check_sonar_pose
 from ._image_info import map_info_to_grid
 from ._params import ConfigParameters
 from ._runtime import run_node
@@ -80,8 +81,7 @@ class GpfNodeConfig(GpfConfig):
 
     def validate(self) -> None:
         super().validate()
-        if len(self.sonar_pose) != 3:
-            raise ConfigError(f'sonar_pose = {list(self.sonar_pose)} must be [x, y, yaw_deg]')
+        check_sonar_pose(self.sonar_pose)
 
 
 def check_fls_image(image: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarray:

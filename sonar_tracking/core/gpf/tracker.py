@@ -84,7 +84,8 @@ class StepReport:
 
 
 def check_image(image: np.ndarray, grid: ImageGrid) -> np.ndarray:
-    """The image as a float array (non-finite values as 0 = no data), or GpfInputError."""
+    """The image as an array of numbers with the grid's shape, or GpfInputError saying what is wrong
+    (non-finite pixels are left to :meth:`GpfTracker.prepare`, which reads them as no data)."""
     a = np.asarray(image)
     if a.ndim != 2:
         raise GpfInputError(f'image must be 2-D (rows x columns), got shape {a.shape}')
