@@ -34,7 +34,7 @@ from . import sir
 from .config import GpfConfig
 from .cues import CueModel
 from .fusion import MF, WF, fuse, normalise_log, second_target
-from .gaussian import floor_position, kalman_update, predict, sample_gaussian, weighted_moments
+from .gaussian import condition_velocity, floor_position, kalman_update, predict, sample_gaussian, weighted_moments
 from .management import (birth_covariance, blend_template, reseed_pairs, should_end, spaced, template_may_update,
                          unexplained, widen)
 from .track import GpfTrack, tracks_to_records
@@ -264,6 +264,8 @@ class GpfTracker:
             w = normalise_log(fused.log_likelihood)
         mean, cov = weighted_moments(particles, w)
         cov = floor_position(cov, max(res * res / 12.0, self.config.min_std ** 2))
+        if self.method != 'sir':            # the SIR keeps its particles' own velocities
+            mean, cov = condition_velocity(tr.mean, tr.cov, mean[:2], cov[:2, :2])
         observed = self.cues.values(wi, grid, mean[None, :2])[:, 0]
         match = float(self.cues.match(self.cues.distances2(observed[:, None], tr.template))[0])
         distinct = float(self.cues.match(self.cues.distances2(frame.background[:, None], tr.template))[0])

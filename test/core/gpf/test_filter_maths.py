@@ -10,8 +10,8 @@ import pytest
 from sonar_tracking.core.gpf import fusion, fuzzy
 from sonar_tracking.core.gpf.cues import CUE_SPECS, CueModel, window_pixels
 from sonar_tracking.core.gpf.ekf import polar_measurement
-from sonar_tracking.core.gpf.gaussian import (floor_position, kalman_update, motion_matrices, predict, propagate,
-                                              sample_gaussian, weighted_moments)
+from sonar_tracking.core.gpf.gaussian import (condition_velocity, floor_position, kalman_update, motion_matrices,
+                                              predict, propagate, sample_gaussian, weighted_moments)
 from sonar_tracking.core.tracking import ConstantVelocity, white_noise_acceleration
 
 P = np.array([[0.5, 0.1, 0.02, 0.0], [0.1, 0.4, 0.0, 0.01], [0.02, 0.0, 0.09, 0.0], [0.0, 0.01, 0.0, 0.06]])
@@ -66,6 +66,46 @@ def test_kalman_update_and_the_polar_jacobian():
     num = np.column_stack([(polar_measurement(X + eps * e, sensor)[0] - polar_measurement(X - eps * e, sensor)[0])
                            / (2 * eps) for e in np.eye(4)])
     np.testing.assert_allclose(J, num, atol=1e-7)
+
+
+def test_velocity_by_conditioning_is_the_exact_posterior():
+    """With a Gaussian position measurement the exact posterior is the Kalman update; given that
+    update's position moments, conditioning on the prior gives back its whole mean and covariance."""
+    H, R = np.eye(2, 4), np.diag([0.05, 0.08])
+    m, c = kalman_update(X, P, np.array([0.4, -0.3]), H, R)
+    cm, cc = condition_velocity(X, P, m[:2], c[:2, :2])
+    np.testing.assert_allclose(cm, m, atol=1e-12)
+    np.testing.assert_allclose(cc, c, atol=1e-12)
+    # The position moments are passed through; no position change leaves the velocity prior's mean.
+    cm, cc = condition_velocity(X, P, X[:2], P[:2, :2])
+    np.testing.assert_allclose(cm, X)
+    np.testing.assert_allclose(cc, P, atol=1e-12)
+
+
+def test_velocity_by_conditioning_has_less_monte_carlo_error():
+    """A sharp likelihood of the position (as multiplicative fusion gives) leaves eq. 8 a few
+    effective particles: their weighted velocity mean scatters from draw to draw and their velocity
+    variance collapses; conditioning gives the exact velocity moments from the same draws."""
+    H, R = np.eye(2, 4), np.diag([0.002, 0.002])
+    z = X[:2] + np.array([0.3, -0.2])
+    exact_m, exact_c = kalman_update(X, P, z - X[:2], H, R)
+    rng = np.random.default_rng(11)
+    plain_v, cond_v, plain_var, cond_var = [], [], [], []
+    for _ in range(400):
+        pts = sample_gaussian(X, P, 300, rng)
+        logw = -0.5 * np.sum((pts[:, :2] - z) ** 2 / np.diag(R), axis=1)
+        w = np.exp(logw - logw.max())
+        w /= w.sum()
+        m, c = weighted_moments(pts, w)
+        cm, cc = condition_velocity(X, P, m[:2], c[:2, :2])
+        plain_v.append(m[2:]), cond_v.append(cm[2:])
+        plain_var.append(np.diag(c)[2:]), cond_var.append(np.diag(cc)[2:])
+    plain_err = np.mean(np.sum((np.array(plain_v) - exact_m[2:]) ** 2, axis=1))
+    cond_err = np.mean(np.sum((np.array(cond_v) - exact_m[2:]) ** 2, axis=1))
+    assert cond_err < 0.5 * plain_err
+    exact_var = np.diag(exact_c)[2:]
+    assert np.all(np.median(plain_var, axis=0) < 0.8 * exact_var)          # eq. 8 alone: overconfident
+    np.testing.assert_allclose(np.median(cond_var, axis=0), exact_var, rtol=0.1)
 
 
 def test_position_floor():

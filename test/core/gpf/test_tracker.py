@@ -242,7 +242,7 @@ def test_settings_are_checked_and_applied():
         GpfConfig.from_flat({'cues.features': (3.5,)})
     cfg = GpfConfig.from_flat({'cues.features': (3.0, 24.0), 'fusion.thresholds': (0.0, 1.7)})
     tracker = GpfTracker(cfg, np.random.default_rng(0))
-    np.testing.assert_allclose(tracker.thresholds, [1.16, 1.7])     # 0 = the cue's calibrated T_i
+    np.testing.assert_allclose(tracker.thresholds, [0.98, 1.7])     # 0 = the cue's calibrated T_i
     # Changing the cue set re-measures running tracks' templates at their next update.
     rng = np.random.default_rng(20)
     run(tracker, [(image(rng, walk(k)), regions(walk(k))) for k in range(3)])
