@@ -59,16 +59,29 @@ crossing targets are too alike, mean d^2 0.2-0.9 to the wrong target against 1.5
 a 0.5 m window (sigma_i and T_i recalibrated; worse); eq. (18)'s switch on the absolute spread
 ``Delta_i`` (the flat cues f17, f20 make it a test of the prediction's width; not better).
 
-**No per-frame switch beats WF on the crossings here (seed 7, 30 runs).** An oracle adaptive
-fusion that, in every update, takes whichever of MF and WF puts the posterior mean nearer the true
-target (the one nearest the prediction) has mean CLE 0.376 and 0.542 m on situations 8 and 10,
-against 0.350 and 0.501 m for WF (MF 0.494, 0.590); on situation 1 it is 0.703 m (MF 0.646, WF
-0.718). An MF update that is right in its own frame still leaves the track worse placed for the
-frames after, so choosing MF more cleverly cannot help. Also tried and not kept: stricter
-thresholds (the median to the 75th percentile of the healthy reliabilities: AF approaches WF, still
-0.01 m behind on 8 and 9), WF while a track is tentative or was lost in the previous frame,
-MF's mean with WF's covariance (MF worse still), a higher posterior floor (``min_std`` 0.25-0.35),
-and MF by default with WF within a wider crossing gate (up to d^2 < 100).
+**Why MF lost to WF, and the mend: velocity by conditioning.** Before it, no per-frame switch
+beat WF on the crossings (seed 7, 30 runs): an oracle that in every update took whichever of MF
+and WF put the posterior mean nearer the true target scored 0.376 and 0.542 m on situations 8 and
+10 against 0.350 and 0.501 m for WF. An MF update that was right in its own frame still left the
+track worse placed for the frames after. Traced (situation 11, seed 7, run 14): a young track's MF
+update put nearly all weight on two particles, so eq. 8 gave it their velocity (0.40 m/s across,
+the target's was 0.0) with a spread of 0.05 m/s; the next prediction was 1.6 m off with a 0.3 m
+spread, the track was lost and wandered 6 m. The likelihood sees only positions, so the update now
+takes the velocity from the prediction's conditional given the posterior position
+(:func:`sonar_tracking.core.gpf.gaussian.condition_velocity`: eq. 8's posterior without its Monte
+Carlo error), with a position floor of 0.25 m (``min_std``; 0.1, 0.25 and 0.4 tried) and the
+thresholds ``T_i`` at each cue's 7.5th healthy percentile (:mod:`sonar_tracking.core.gpf.cues`).
+Seed 7, 30 runs, AF / MF / WF mean CLE: situations 1-4 0.657 / 0.649 / 0.718, 0.326 / 0.313 /
+0.333, 0.368 / 0.363 / 0.399, 0.213 / 0.210 / 0.226 (AF follows MF, the better there); 8-11
+0.356 / 0.464 / 0.351, 0.363 / 0.481 / 0.363, 0.491 / 0.703 / 0.495, 0.377 / 0.458 / 0.396 (AF
+follows WF, and is ahead on 11). Checked on seeds 2026 (30 and 200 runs) and 11 (100 runs; issue
+note, README): on the crossings AF's paired 95 % interval to the better of MF and WF contains zero,
+its point estimate ahead on some situations and behind on others; on the single targets AF trails
+MF by 0.002-0.010 m (an interval clear of zero on seed 11's situations 2 and 4). Not kept (seed 7): a crossing
+test from the segmented regions as well as the tracks (about neutral), keeping tentative tracks 11 s
+(identity 97 % on 8, 9 and 11, still 77 % on 10, and 0.03-0.11 m more mean CLE because a lost
+young track coasts at the standing start's zero velocity), the template frozen (``template.rate``
+0 or 0.05: no change).
 """
 from __future__ import annotations
 

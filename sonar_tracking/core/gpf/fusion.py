@@ -50,7 +50,9 @@ per method): AF 0.42 -> 0.37, 0.47 -> 0.40, 0.67 -> 0.61, 0.41 -> 0.40 against W
 0.65, 0.50, identity kept 87-90 %: AF beats MF everywhere and WF on situation 8, but WF stays
 0.01-0.04 m ahead on 9-11 (within the run-to-run noise of a few failure runs). With common random
 numbers across methods (the study's design since, :mod:`sonar_tracking.core.eval.fls_study`) AF is
-within 0.01-0.09 m of WF on 8-11, not better.
+within 0.01-0.09 m of WF on 8-11, not better. These figures predate the velocity conditioning of the
+update (:mod:`.gaussian`) and the 7.5th-percentile ``T_i`` (:mod:`.cues`); the current ones are in
+:mod:`sonar_tracking.core.eval.fls_study`.
 """
 from __future__ import annotations
 
