@@ -76,8 +76,9 @@ Seed 7, 30 runs, AF / MF / WF mean CLE: situations 1-4 0.657 / 0.649 / 0.718, 0.
 0.356 / 0.464 / 0.351, 0.363 / 0.481 / 0.363, 0.491 / 0.703 / 0.495, 0.377 / 0.458 / 0.396 (AF
 follows WF, and is ahead on 11). Checked on seeds 2026 (30 and 200 runs) and 11 (100 runs; issue
 note, README): on the crossings AF's paired 95 % interval to the better of MF and WF contains zero,
-its point estimate ahead on some situations and behind on others; on the single targets AF trails
-MF by 0.002-0.010 m (an interval clear of zero on seed 11's situations 2 and 4). Not kept (seed 7): a crossing
+its point estimate ahead on some situations and behind on others; on the single targets AF is
+between 0.005 m ahead of MF and 0.026 m behind it, and its interval is clear of zero only on seed
+11's situations 2 and 4 (+0.009 +/- 0.005, +0.008 +/- 0.005 m behind MF, ahead of WF). Not kept (seed 7): a crossing
 test from the segmented regions as well as the tracks (about neutral), keeping tentative tracks 11 s
 (identity 97 % on 8, 9 and 11, still 77 % on 10, and 0.03-0.11 m more mean CLE because a lost
 young track coasts at the standing start's zero velocity), the template frozen (``template.rate``
