@@ -80,8 +80,9 @@ its point estimate ahead on some situations and behind on others; on the single 
 between 0.005 m ahead of MF and 0.026 m behind it, and its interval is clear of zero only on seed
 11's situations 2 and 4 (+0.009 +/- 0.005, +0.008 +/- 0.005 m behind MF, ahead of WF). Not kept (seed 7): a crossing
 test from the segmented regions as well as the tracks (about neutral), keeping tentative tracks 11 s
-(identity 97 % on 8, 9 and 11, still 77 % on 10, and 0.03-0.11 m more mean CLE because a lost
-young track coasts at the standing start's zero velocity), the template frozen (``template.rate``
+(AF identity 97 % on 8, 9 and 11, still 77 % on 10, and 0.03-0.11 m more mean CLE because a lost
+young track coasts at its birth velocity of zero; 16 s, measured with WF before the conditioning,
+reached 87 % on 10 at a cost of up to 0.17 m), the template frozen (``template.rate``
 0 or 0.05: no change).
 """
 from __future__ import annotations
