@@ -251,7 +251,7 @@ def run_once(study: FlsStudy, seed: np.random.SeedSequence) -> dict:
 def summarise(study: FlsStudy, runs: list[dict]) -> dict:
     """JSON-ready per-method results over runs: ``cle_mean`` and ``lost_frames`` per target, ``cle``
     per target per frame (mean over the runs where defined), and the rest (module docstring)."""
-    out = {}
+    out, run_means = {}, {}
     for m in study.methods:
         cle = np.stack([r['scores'][m]['cle'] for r in runs])             # (R, G, F)
         lost = np.stack([r['scores'][m]['lost'] for r in runs])
@@ -266,7 +266,8 @@ def summarise(study: FlsStudy, runs: list[dict]) -> dict:
             'identity_changes': [float((acq[:, t] - 1).clip(0).mean()) for t in range(cle.shape[1])],
             'runs_never_tracked': [int((acq[:, t] == 0).sum()) for t in range(cle.shape[1])],
         }
-        res['cle_run'] = [_finite(run_cle(c)) for c in cle]
+        run_means[m] = np.array([run_cle(c) for c in cle])
+        res['cle_run'] = [_finite(v) for v in run_means[m]]
         ident = [r['scores'][m]['identity'] for r in runs]
         if ident and all(i is not None for i in ident):
             kept = np.stack(ident)                                          # (R, G): 1, 0 or NaN
@@ -278,9 +279,7 @@ def summarise(study: FlsStudy, runs: list[dict]) -> dict:
         out[m] = res
     first = study.methods[0]
     for m in study.methods[1:]:
-        out[m]['paired_with_first'] = {'first': first, **paired_difference(
-            np.array([np.nan if v is None else v for v in out[first]['cle_run']]),
-            np.array([np.nan if v is None else v for v in out[m]['cle_run']]))}
+        out[m]['paired_with_first'] = {'first': first, **paired_difference(run_means[first], run_means[m])}
     return out
 
 
