@@ -202,7 +202,7 @@ def test_bad_input_is_dropped_with_a_reason_and_the_node_keeps_running(tracker):
         assert message in err, message
 
 
-@pytest.mark.parametrize('tracker', [('particles:=5', 'fusion.mode:=best', 'lost.max_time:=30.0')], indirect=True)
+@pytest.mark.parametrize('tracker', [('particles:=5', 'fusion.mode:=best', 'lost.max_time:=40.0')], indirect=True)
 def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker):
     from rcl_interfaces.srv import GetParameters, SetParameters
     from rclpy.parameter import Parameter
@@ -220,7 +220,7 @@ def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker)
         return [v.integer_value if v.type == 2 else v.double_value if v.type == 3 else v.string_value
                 if v.type == 4 else list(v.double_array_value) for v in res]
 
-    assert get('particles', 'fusion.mode', 'lost.max_time', 'cues.features') == [300, 'af', 30.0,
+    assert get('particles', 'fusion.mode', 'lost.max_time', 'cues.features') == [300, 'af', 40.0,
                                                                                  [20.0, 17.0, 3.0, 6.0, 24.0]]
     r = set_('fusion.mode', 'sum')
     assert not r.successful and 'fusion.mode' in r.reason

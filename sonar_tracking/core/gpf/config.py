@@ -158,8 +158,9 @@ class LostConfig(Config):
                                  low=0.0, high=1e6, low_open=True)
     max_std: float = setting(1.5, 'widening stops at this position std (ours: a tank target drifts about that far '
                              'from its predicted path in 20 s)', unit='m', low=0.0, high=1e4, low_open=True)
-    max_time: float = setting(20.0, 'a confirmed track ends after this long without seeing its target',
-                              unit='s', low=0.0, high=1e6)
+    max_time: float = setting(30.0, 'a confirmed track ends after this long without seeing its target (ours: six '
+                              '5 s tank frames, long enough to coast through a crossing while a target hardly '
+                              'echoes)', unit='s', low=0.0, high=1e6)
     tentative_time: float = setting(6.0, 'a tentative track ends after this long without seeing its target '
                                     '(0: at its first miss)', unit='s', low=0.0, high=1e6)
 
