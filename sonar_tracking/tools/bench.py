@@ -16,7 +16,6 @@ from __future__ import annotations
 import fnmatch
 import gc
 import importlib
-import json
 import os
 import pkgutil
 import platform
@@ -27,6 +26,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+
+from ._output import write_json
 
 __all__ = ['Case', 'Result', 'register', 'cases', 'run_case', 'run', 'format_table', 'main_args']
 
@@ -207,8 +208,5 @@ def main_args(args: Any) -> int:
         return 2
     print(format_table(results))
     if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({'machine': machine_info(), 'cases': [asdict(r) for r in results]},
-                                        indent=2) + '\n')
-        print(f'wrote {args.json}')
+        write_json(args.json, {'machine': machine_info(), 'cases': [asdict(r) for r in results]})
     return 0
