@@ -183,7 +183,7 @@ class GpfConfig(Config):
 
     particles: int = setting(300, 'particles K per track and frame (paper: 300 in the tank, 200 at sea)',
                              low=10, high=100000)
-    min_std: float = setting(0.25, 'posterior position std floor: weights on few particles must not claim more '
+    min_std: float = setting(0.5, 'posterior position std floor: weights on few particles must not claim more '
                              'precision than a window can give (ours)', unit='m', low=0.0, high=100.0)
     motion: MotionConfig = dataclasses.field(default_factory=MotionConfig)
     cues: CueConfig = dataclasses.field(default_factory=CueConfig)

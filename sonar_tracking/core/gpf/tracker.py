@@ -263,7 +263,8 @@ class GpfTracker:
         else:
             w = normalise_log(fused.log_likelihood)
         mean, cov = weighted_moments(particles, w)
-        cov = floor_position(cov, max(res * res / 12.0, self.config.min_std ** 2))
+        floor = max(res * res / 12.0, self.config.min_std ** 2)
+        cov = floor_position(cov, floor)
         if self.method != 'sir':            # the SIR keeps its particles' own velocities
             mean, cov = condition_velocity(tr.mean, tr.cov, mean[:2], cov[:2, :2])
         observed = self.cues.values(wi, grid, mean[None, :2])[:, 0]
@@ -282,6 +283,7 @@ class GpfTracker:
         tr.observed = observed
         if self.method == 'sir':
             tr.particles, tr.weights = sir.resample(particles, w, self.rng)
+            tr.particles = sir.roughen(tr.particles, floor, self.rng)
 
     # -- management -----------------------------------------------------------------------------
     def _templates(self, wi: WindowImage | None, grid: ImageGrid) -> None:

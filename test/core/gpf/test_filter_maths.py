@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.core.gpf import fusion, fuzzy
+from sonar_tracking.core.gpf import fusion, fuzzy, sir
 from sonar_tracking.core.gpf.cues import CUE_SPECS, CueModel, window_pixels
 from sonar_tracking.core.gpf.ekf import polar_measurement
 from sonar_tracking.core.gpf.gaussian import (condition_velocity, floor_position, kalman_update, motion_matrices,
@@ -114,6 +114,21 @@ def test_position_floor():
     assert np.linalg.eigvalsh(f[:2, :2]).min() == pytest.approx(0.01)
     assert f[1, 1] == pytest.approx(0.5) and f[2, 2] == 0.1
     assert floor_position(P, 0.01) is P
+
+
+def test_sir_roughening_floors_the_particle_spread():
+    rng = np.random.default_rng(4)
+    # A resampled cloud: 300 copies of three particles, 5 cm apart along x.
+    base = np.array([[10.0, 2.0, 0.3, 0.0], [10.05, 2.0, 0.3, 0.0], [10.1, 2.0, 0.31, 0.0]])
+    cloud = base[rng.integers(0, 3, 300)]
+    out = sir.roughen(cloud, 0.5 ** 2, rng)
+    m0, c0 = weighted_moments(cloud)
+    m1, c1 = weighted_moments(out)
+    assert np.linalg.eigvalsh(c1[:2, :2]).min() == pytest.approx(0.25, rel=0.2)   # 300 draws: ~8 % std
+    np.testing.assert_allclose(m1[:2], m0[:2], atol=0.1)
+    np.testing.assert_array_equal(out[:, 2:], cloud[:, 2:])                      # velocities untouched
+    wide = sample_gaussian(X, P, 300, rng)
+    assert sir.roughen(wide, 0.2 ** 2, rng) is wide                              # already wider: unchanged
 
 
 def test_likelihood_of_eq_13():
