@@ -183,8 +183,10 @@ class GpfConfig(Config):
 
     particles: int = setting(300, 'particles K per track and frame (paper: 300 in the tank, 200 at sea)',
                              low=10, high=100000)
-    min_std: float = setting(0.5, 'posterior position std floor: weights on few particles must not claim more '
-                             'precision than a window can give (ours)', unit='m', low=0.0, high=100.0)
+    min_std: float = setting(0.5, 'posterior position std floor of the GPF, and the spread the SIR baseline is '
+                             'roughened to after resampling (ours): a sharper posterior leaves the next prediction '
+                             'too narrow to hold a towed target that changes course (0.5: best of 0.25-0.65 on the '
+                             'tank situations, sonar_tracking.core.eval.fls_study)', unit='m', low=0.0, high=100.0)
     motion: MotionConfig = dataclasses.field(default_factory=MotionConfig)
     cues: CueConfig = dataclasses.field(default_factory=CueConfig)
     fusion: FusionConfig = dataclasses.field(default_factory=FusionConfig)
