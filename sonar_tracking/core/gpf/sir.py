@@ -45,9 +45,8 @@ def resample(particles: np.ndarray, weights: np.ndarray, rng: np.random.Generato
 def spread(particles: np.ndarray, weights: np.ndarray, inflation: float, cov: np.ndarray) -> np.ndarray:
     """Particles moved away from their weighted mean by ``sqrt(inflation)`` (their covariance times
     ``inflation``); ``cov`` is the widened covariance the GPF would have, which caps the spread."""
-    mean = weights @ particles
+    mean, current = weighted_moments(particles, weights)
     dev = particles - mean
-    current = (dev * weights[:, None]).T @ dev
     factor = np.sqrt(max(1.0, min(inflation, float(np.trace(cov[:2, :2])) / max(float(np.trace(current[:2, :2])),
                                                                                   1e-300))))
     return mean + dev * factor
