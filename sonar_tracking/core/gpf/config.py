@@ -156,8 +156,9 @@ class LostConfig(Config):
     refind_gate: float = setting(6.0, 'a lost track takes up a free region when their squared Mahalanobis distance '
                                  '(widened track covariance + the initial spread) is below this (6: 95 %; ours)',
                                  low=0.0, high=1e6, low_open=True)
-    max_std: float = setting(1.5, 'widening stops at this position std (ours: a tank target drifts about that far '
-                             'from its predicted path in 20 s)', unit='m', low=0.0, high=1e4, low_open=True)
+    max_std: float = setting(1.5, 'a miss inflates the covariance only up to this position std (ours: a tank target '
+                             'drifts about that far from its predicted path in 20 s); the prediction still spreads '
+                             'with the velocity\'s uncertainty', unit='m', low=0.0, high=1e4, low_open=True)
     max_time: float = setting(30.0, 'a confirmed track ends after this long without seeing its target (ours: six '
                               '5 s tank frames, long enough to coast through a crossing while a target hardly '
                               'echoes)', unit='s', low=0.0, high=1e6)
