@@ -1,0 +1,129 @@
+"""Echo intensity of real sonar sectors: decoding to linear amplitude, noise floor, range gating.
+
+Both papers work on linear echo amplitude (the ESC paper's eqs. 13-15 are laws of the amplitude;
+the FLS paper's eq. 1 filters it). Real drivers rarely publish that: Tritech and Ping360 bins are
+8-bit counts of a log-compressed (dB) amplitude, imaging sonars publish 8- or 16-bit display
+values, and the near field rings. This module is the one place that turns what a sensor sends
+into the linear amplitude the algorithms expect; the importer (``sonar_import``) and both
+front ends (``active_detector``, ``fls_features``) call it with the same :class:`IntensityConfig`.
+
+Codings (``coding``):
+
+* ``linear_amplitude``: values are the amplitude (the simulator's ``32FC1``, the default);
+* ``linear_power``: values are echo power; amplitude = sqrt(power);
+* ``db``: values are a log-compressed amplitude. Integer images map their full count range
+  (255 for ``mono8``, 65535 for ``mono16``) onto ``db_span`` dB, so a count ``c`` is
+  ``c * db_span / full_scale`` dB; float images carry dB directly. Amplitude = 10^(dB / 20),
+  relative to the level of count 1;
+* ``display``: values are display brightness with gamma ``gamma``: amplitude =
+  (c / full_scale)^gamma (floats taken as already in [0, 1]).
+
+In every coding an exact zero stays 0: a sensor that reports 0 measured nothing there (below its
+gain floor, or a blanked cell), which is not the same as a weak echo. Cells at or below
+``noise_floor`` (linear amplitude, after decoding) are set to 0 as well. Rows nearer than
+``blank_range`` (transducer ringdown) are set to 0, and rows beyond ``max_range`` are cut off.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Config, ConfigError, setting
+from .sector import SectorGeometry
+
+__all__ = ['CODINGS', 'IntensityConfig', 'decode', 'full_scale_of', 'gate_ranges', 'condition']
+
+CODINGS = ('linear_amplitude', 'linear_power', 'db', 'display')
+
+
+@dataclass(frozen=True)
+class IntensityConfig(Config):
+    """How a sensor's intensity values become linear echo amplitude, and which ranges count."""
+
+    coding: str = setting('linear_amplitude', 'what the sector values are: linear_amplitude, linear_power, db '
+                          '(log-compressed counts) or display (gamma-coded brightness)', choices=CODINGS)
+    db_span: float = setting(60.0, 'db coding: the dB range that the full count range spans (255 for mono8, '
+                             '65535 for mono16)', unit='dB', low=1.0, high=200.0)
+    gamma: float = setting(2.2, 'display coding: amplitude = (value / full scale)^gamma', low=0.1, high=10.0)
+    noise_floor: float = setting(0.0, 'decoded amplitudes at or below this are no echo (set to 0)', low=0.0,
+                                 high=1e12)
+    blank_range: float = setting(0.0, 'cells nearer than this are no echo (transducer ringdown)', unit='m',
+                                 low=0.0, high=1e5)
+    max_range: float = setting(0.0, 'cells beyond this range are cut off; 0 = keep every range bin', unit='m',
+                               low=0.0, high=1e5)
+
+    def validate(self) -> None:
+        super().validate()
+        if self.max_range and self.max_range <= self.blank_range:
+            raise ConfigError(f'max_range = {self.max_range} m must be 0 (no limit) or beyond blank_range = '
+                              f'{self.blank_range} m')
+
+
+def full_scale_of(dtype: np.dtype) -> float | None:
+    """The count of full scale for an integer image dtype (255, 65535), None for floats."""
+    dtype = np.dtype(dtype)
+    return float(np.iinfo(dtype).max) if dtype.kind in 'ui' else None
+
+
+def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: float = 60.0, gamma: float = 2.2,
+           full_scale: float | None = None) -> np.ndarray:
+    """Linear echo amplitude (float64, a new array) of sensor values in ``coding``.
+
+    ``full_scale`` is the count of full scale of an integer image (:func:`full_scale_of`); None
+    for float values. Exact zeros stay 0. Raises ValueError for an unknown coding.
+    """
+    v = np.asarray(values, dtype=np.float64)
+    if coding == 'linear_amplitude':
+        return v.copy()
+    if coding == 'linear_power':
+        return np.sqrt(np.maximum(v, 0.0))
+    if coding == 'db':
+        db = v * (db_span / full_scale) if full_scale else v
+        step = db_span / full_scale if full_scale else 0.0
+        # relative to count 1 (or 0 dB for floats), so the weakest reported echo is about 1
+        out = np.power(10.0, (db - step) / 20.0)
+    elif coding == 'display':
+        scaled = np.clip(v / full_scale, 0.0, None) if full_scale else np.clip(v, 0.0, None)
+        out = np.power(scaled, gamma)
+    else:
+        raise ValueError(f'unknown intensity coding {coding!r}; one of {list(CODINGS)}')
+    out[v == 0.0] = 0.0
+    return out
+
+
+def gate_ranges(geometry: SectorGeometry, blank_range: float, max_range: float) -> tuple[int, int]:
+    """Rows ``[first, stop)`` of the sector that lie in ``[blank_range, max_range]`` (0 = no limit).
+
+    Rows before ``first`` are blanked, rows from ``stop`` on are cut off. ``stop`` is at least 1,
+    so a sector is never cut to nothing.
+    """
+    ranges = geometry.ranges()
+    first = int(np.searchsorted(ranges, blank_range, side='left')) if blank_range > 0 else 0
+    stop = int(np.searchsorted(ranges, max_range, side='right')) if max_range > 0 else geometry.n_bins
+    return min(first, geometry.n_bins), max(stop, 1)
+
+
+def condition(values: np.ndarray, geometry: SectorGeometry,
+              config: IntensityConfig) -> tuple[np.ndarray, SectorGeometry]:
+    """Decode a sector to linear amplitude, floor it, blank the near field and cut at ``max_range``.
+
+    Returns ``(amplitudes, geometry)``: float64 amplitudes of shape ``geometry.shape`` (the
+    returned geometry has fewer bins when ``max_range`` cut some). The input is not modified.
+    """
+    a = np.asarray(values)
+    if a.shape != geometry.shape:
+        raise ValueError(f'values have shape {a.shape}, geometry says {geometry.shape}')
+    amplitude = decode(a, config.coding, db_span=config.db_span, gamma=config.gamma,
+                       full_scale=full_scale_of(a.dtype))
+    if config.noise_floor > 0:
+        amplitude[amplitude <= config.noise_floor] = 0.0
+    first, stop = gate_ranges(geometry, config.blank_range, config.max_range)
+    amplitude[:first] = 0.0
+    if stop < geometry.n_bins:
+        amplitude = amplitude[:stop]
+        top = geometry.ranges()[stop - 1] if stop > 1 else geometry.range_min
+        geometry = dataclasses.replace(geometry, n_bins=stop, range_max=float(top))
+    return amplitude, geometry
+
