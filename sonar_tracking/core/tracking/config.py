@@ -98,6 +98,10 @@ class InitConfig(Config):
 
     speed_max: float = setting(15.0, 'largest target speed; each velocity component of a new track has '
                                'mean 0 and variance speed_max^2 / 3', unit='m/s', low=0.0, high=1e4, low_open=True)
+    min_ratio: float = setting(0.1, 'an unused detection starts a track only where P_D times the expected target '
+                               'likelihood in the new track\'s first gate is at least this multiple of the clutter '
+                               'density there (bounds a new gate to gamma P_D / (4 min_ratio) clutter); 0 = always',
+                               low=0.0, high=1e6)
 
 
 @dataclass(frozen=True)
@@ -111,6 +115,12 @@ class TrackConfig(Config):
                                       'it no longer follows anything', unit='m', low=0.0, high=1e9, low_open=True)
     max_tracks: int = setting(5000, 'most tracks kept; beyond, the least likely tentative tracks are dropped',
                               low=1, high=10_000_000)
+    max_pairs: int = setting(200_000, 'most candidate track-detection pairs per scan (bounds memory: about 2 kB '
+                             'each); beyond, the least likely tentative tracks get no pairs and are removed',
+                             low=1, high=1_000_000_000)
+    max_time_outside: float = setting(10.0, 'a track whose position has been outside the sensor coverage (when the '
+                                      'caller passes it) for longer than this is terminated; 0 = at once',
+                                      unit='s', low=0.0, high=1e9)
     max_gap: float = setting(60.0, 'a scan more than this after the previous one restarts the tracker',
                              unit='s', low=0.0, high=1e9, low_open=True)
 

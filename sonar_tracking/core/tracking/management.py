@@ -20,6 +20,15 @@ Confirmation: a track is confirmed the first time its existence exceeds ``T_c`` 
 confirmed until it is terminated (the paper's FTD counts confirmed tracks per scan). Termination:
 existence below the lower threshold.
 
+Gated initiation (not in the paper). In dense clutter one-point starts flood: every unused
+measurement becomes a track whose first gate holds ``rho A`` clutter measurements, so pairs grow
+as clutter^2. An unused measurement starts a track only where :func:`initiation_ratio` (the
+expected gain of the target term of eq. 33 over the clutter-only ``E[Lambda] = 1`` in the new
+track's first gate) is at least ``init.min_ratio``; this bounds the expected clutter in a new
+gate to ``gamma P_D / (4 min_ratio)`` whatever the density, and so makes the pairs linear in the
+clutter. Where the ratio is lower, an IPDA track could not tell its target from clutter anyway.
+New tracks are also limited to the room left under ``track.max_tracks``, highest ratio first.
+
 Duplicates (not in the paper). While the first track on a target is still tentative, the
 target's next measurements are not used by a confirmed track and start more tracks on the
 same target. A track whose combined state lies within ``merge_threshold`` (squared Mahalanobis
@@ -32,8 +41,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from .gating import candidate_pairs
+
 __all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'duplicate_tracks',
-           'excess_tracks']
+           'initiation_ratio', 'excess_tracks']
 
 
 def initial_covariance(R: np.ndarray, speed_max: float) -> np.ndarray:
@@ -76,27 +87,29 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
                      ids: np.ndarray, threshold: float) -> np.ndarray:
     """Mask of tracks to remove as duplicates of a confirmed track (see the module docstring).
 
-    ``x (n, T)``, ``P (n, n, T)`` are the combined estimates (eqs. 41-42). Candidates are first
-    screened on position alone (a marginal Mahalanobis distance never exceeds the full one), so
-    the full test runs on few pairs.
+    ``x (n, T)``, ``P (n, n, T)`` are the combined estimates (eqs. 41-42). Candidates are
+    screened spatially first with the gating index
+    (:func:`~sonar_tracking.core.tracking.gating.candidate_pairs`): along each position axis j a
+    duplicate lies within ``sqrt(threshold (P_jj + max_c P^c_jj))`` of a confirmed track (a
+    marginal Mahalanobis distance never exceeds the full one), so the work follows the near
+    pairs, not confirmed x all tracks; the full test runs on those.
     """
     n = x.shape[1]
     drop = np.zeros(n, dtype=bool)
     conf = np.flatnonzero(confirmed)
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
-    dx = x[0][None, :] - x[0, conf][:, None]                            # (C, T)
-    dy = x[1][None, :] - x[1, conf][:, None]
-    a = P[0, 0][None, :] + P[0, 0, conf][:, None]
-    b = P[0, 1][None, :] + P[0, 1, conf][:, None]
-    c = P[1, 1][None, :] + P[1, 1, conf][:, None]
-    with np.errstate(divide='ignore', invalid='ignore'):
-        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
-    near = (d2 < threshold) & (conf[:, None] != np.arange(n)[None, :])
-    ci, tj = np.nonzero(near)
+    d = x.shape[0] // 2
+    pos_var = np.stack([P[j, j] for j in range(d)])                    # (d, T)
+    with np.errstate(invalid='ignore'):
+        half = np.sqrt(threshold * (pos_var + pos_var[:, conf].max(axis=1)[:, None])).T
+    centre = x[:d].T
+    tj, k = candidate_pairs(centre - half, centre + half, centre[conf])
+    ci = conf[k]
+    near = ci != tj
+    ci, tj = ci[near], tj[near]
     if len(ci) == 0:
         return drop
-    ci = conf[ci]
     diff = (x[:, ci] - x[:, tj]).T
     S = np.moveaxis(P[:, :, ci] + P[:, :, tj], -1, 0)
     full = np.linalg.solve(S, diff[..., None])[..., 0]
@@ -107,6 +120,26 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     c_wins = (cc & ~ct) | ((cc == ct) & (ids[ci] < ids[tj]))
     drop[np.where(c_wins, tj, ci)] = True
     return drop
+
+
+def initiation_ratio(R: np.ndarray, rho: np.ndarray, speed_max: float, dt: float, p_detect: float) -> np.ndarray:
+    """Target-to-clutter density ratio of the first gate of a track started at each measurement.
+
+    A one-point track started from a measurement with covariance ``R_i`` has, one scan ``dt``
+    later, the innovation covariance ``S_1 = 2 R_i + dt^2 speed_max^2 / 3 I`` (process noise
+    neglected). The target's measurement then has the expected likelihood
+    ``E[N(nu; 0, S_1)] = 1 / ((4 pi)^(d/2) sqrt(det S_1))``; times ``P_D`` and divided by the
+    clutter density ``rho_i`` this is the expected gain of the target term of eq. (33) over
+    the clutter-only value ``E[Lambda] = 1``. Returns ``(N,)``.
+    """
+    R = np.asarray(R, dtype=float)
+    d = R.shape[-1]
+    S = 2.0 * R + (dt * dt * speed_max ** 2 / 3.0) * np.eye(d)
+    if d == 2:
+        det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
+    else:
+        det = np.linalg.det(S)
+    return p_detect / ((4.0 * np.pi) ** (d / 2.0) * np.sqrt(det) * rho)
 
 
 def excess_tracks(existence: np.ndarray, confirmed: np.ndarray, max_tracks: int) -> np.ndarray:

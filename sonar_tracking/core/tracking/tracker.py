@@ -13,6 +13,13 @@ Input handling of :meth:`ImmIpdaTracker.step`:
   rest of the scan is used. :attr:`ImmIpdaTracker.report` lists the dropped rows with reasons;
 * a scan with the same stamp as the previous one is dropped whole (``report.duplicate_stamp``)
   and the previous output is returned again;
+* detections are paired with tracks through a spatial index, at most ``track.max_pairs``
+  candidate pairs per scan (confirmed tracks first, then by existence); tracks left without
+  pairs by that budget are removed (``report.over_budget``), so memory and time per scan are
+  bounded for any input: tracks by ``track.max_tracks``, pairs by ``track.max_pairs``;
+* with ``coverage`` (:class:`~sonar_tracking.core.tracking.coverage.Coverage`) passed to
+  :meth:`ImmIpdaTracker.step`, a track whose position has stayed outside it for more than
+  ``track.max_time_outside`` ends (``report.left_coverage``);
 * a scan stamped before the previous one (a replayed bag looping) or more than
   ``track.max_gap`` after it resets the tracker: every track is removed, the new scan is
   processed as a first scan and ``report.reset`` says why. Track ids keep counting, so an id is
@@ -32,12 +39,13 @@ import numpy as np
 from ..records import TRACK_DTYPE
 from .config import MODE_NAMES, TrackerConfig
 from .errors import TrackingInputError
-from .gating import Innovations, candidate_pairs, gate_boxes, gate_threshold, innovations
+from .coverage import Coverage
+from .gating import budgeted_pairs, gate_boxes, gate_threshold, innovations
 from .imm import combine, interaction
 from .ipda import ipda_update
 from .kalman import predict, transition_operators
-from .management import (duplicate_tracks, excess_tracks, initial_covariance, one_point_initiation,
-                         unused_measurements)
+from .management import (duplicate_tracks, excess_tracks, initial_covariance, initiation_ratio,
+                         one_point_initiation, unused_measurements)
 from .markov import mode_transition_matrix, predict_existence
 from .measurements import Rejection, as_measurements, check_measurements
 from .motion import ConstantTurn, ConstantVelocity, MotionModel
@@ -84,6 +92,9 @@ class StepReport:
     terminated: int = 0
     merged: int = 0
     capped: int = 0
+    over_budget: int = 0
+    not_initiated: int = 0
+    left_coverage: int = 0
     dropped_numerical: int = 0
     n_tracks: int = 0
     n_confirmed: int = 0
@@ -146,9 +157,11 @@ class ImmIpdaTracker:
         self._mu = np.zeros((m, 0))
         self._exist = np.zeros(0)
         self._confirmed = np.zeros(0, dtype=bool)
+        self._outside = np.zeros(0)
         self._xc = np.zeros((n, 0))
         self._Pc = np.zeros((n, n, 0))
         self._t: float | None = None
+        self._dt: float | None = None
         self._output = np.zeros(0, TRACK_DTYPE)
 
     def initial_covariance(self, R: np.ndarray | None = None) -> np.ndarray:
@@ -178,7 +191,7 @@ class ImmIpdaTracker:
         return self._xc.T.copy(), np.moveaxis(self._Pc, -1, 0).copy()
 
     # ---------------------------------------------------------------- one scan
-    def step(self, t: float, z, R=None, rho=None) -> np.ndarray:
+    def step(self, t: float, z, R=None, rho=None, coverage: Coverage | None = None) -> np.ndarray:
         """Process one scan and return all tracks (tentative and confirmed) as ``TRACK_DTYPE``.
 
         The returned array is read-only (it is not copied); copy it to change it.
@@ -191,6 +204,8 @@ class ImmIpdaTracker:
         rho : ``(N,)`` clutter density at each detection (SCMDE) [1/m^2], used when
             ``clutter.source`` is ``detection``; None, or source ``constant``, uses
             ``clutter.density``.
+        coverage : the region the sensor sees at this scan; None = everywhere (no track ends
+            for leaving coverage).
         """
         cfg = self.config
         t = float(t)
@@ -217,21 +232,25 @@ class ImmIpdaTracker:
             z, R, rho = z[keep], R[keep], rho[keep]
 
         pair_track = pair_meas = np.zeros(0, dtype=np.intp)
+        dt = None if self._t is None else t - self._t
         if len(self._ids):
             # Overflow on absurd input shows as non-finite estimates, which _manage removes.
             with np.errstate(over='ignore', invalid='ignore', divide='ignore', under='ignore'):
-                pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho)
+                pair_track, pair_meas, left_out = self._predict_update(dt, z, R, rho)
             rep.n_pairs = len(pair_track)
             with np.errstate(over='ignore', invalid='ignore'):
-                self._manage(rep)
+                self._manage(rep, left_out, dt, coverage)
             alive = self._alive
             # Pairs of surviving tracks, re-indexed (used to find measurements of confirmed tracks).
             new_index = np.cumsum(alive) - 1
             sel = alive[pair_track]
             pair_track, pair_meas = new_index[pair_track[sel]], pair_meas[sel]
-        unused = unused_measurements(len(z), pair_track, pair_meas, self._confirmed)
-        self._initiate(z[unused], R[unused])
-        rep.initiated = int(unused.sum())
+        unused = np.flatnonzero(unused_measurements(len(z), pair_track, pair_meas, self._confirmed))
+        if dt is not None:
+            self._dt = dt
+        start = self._to_initiate(R[unused], rho[unused])
+        self._initiate(z[unused[start]], R[unused[start]])
+        rep.initiated, rep.not_initiated = len(start), len(unused) - len(start)
         self._t = t
         self._output = self._records()
         self._fill_counts(rep)
@@ -246,7 +265,8 @@ class ImmIpdaTracker:
         return self._fq_cache[1:]
 
     def _predict_update(self, dt: float, z: np.ndarray, R: np.ndarray, rho: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray]:
+                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Predict and update every track; returns the validated pairs and the tracks the budget left out."""
         cfg, d = self.config, self.d
         meas_side = np.concatenate((z.T, R.reshape(len(z), d * d).T))                # (d + d^2, N)
         F, Q, ops = self._transitions(dt)
@@ -259,23 +279,42 @@ class ImmIpdaTracker:
         diag = np.arange(d)
         r_max = R[:, diag, diag].max(axis=0) if len(z) else np.zeros(d)
         lo, hi = gate_boxes(track_side[:d], track_side[d + diag * (d + 1)], r_max, self.gamma)
-        pt, pm = candidate_pairs(lo, hi, z)
+        pt, pm, left_out = budgeted_pairs(lo, hi, z, cfg.track.max_pairs, self._priority)
         tg = np.take(track_side, pt, axis=-1)
         mg = np.take(meas_side, pm, axis=-1)
         innov = innovations(mg[:d], mg[d:].reshape(d, d, -1), tg[:d],
                             tg[d:].reshape(d, d, *tg.shape[1:]))                          # eqs. (25)-(26)
         in_gate = innov.d2 < self.gamma
-        valid = in_gate.any(axis=0)
-        if not valid.all():
-            keep = np.flatnonzero(valid)
-            pt, pm, in_gate, innov = pt[keep], pm[keep], in_gate[:, keep], innov.select(keep)
+        # Candidates outside every mode's gate stay: ipda_update gives them weight 0 (eq. 28), the
+        # sums are unchanged, and no second gather of the per-pair arrays is needed.
         res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho[pm],
                           cfg.detection.probability, cfg.detection.gate_probability)  # eqs. (28)-(40)
         self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
         self._xc, self._Pc = combine(res.mu, res.x, res.P)                           # eqs. (41)-(42)
-        return pt, pm
+        valid = in_gate.any(axis=0)
+        return pt[valid], pm[valid], left_out
 
-    def _manage(self, rep: StepReport) -> None:
+    def _priority(self) -> np.ndarray:
+        """Track indices, most important first: confirmed, then by existence."""
+        return np.lexsort((-self._exist, ~self._confirmed))
+
+    def _to_initiate(self, R: np.ndarray, rho: np.ndarray) -> np.ndarray:
+        """Indices of the unused measurements that start tracks (gated initiation, see management)."""
+        cfg = self.config
+        idx = np.arange(len(R))
+        if cfg.init.min_ratio > 0 and len(R):
+            ratio = initiation_ratio(R, rho, cfg.init.speed_max, self._dt or 0.0, cfg.detection.probability)
+            idx = np.flatnonzero(ratio >= cfg.init.min_ratio)
+        room = max(cfg.track.max_tracks - len(self._ids), 0)
+        if len(idx) > room:
+            if cfg.init.min_ratio > 0:
+                idx = idx[np.argsort(-ratio[idx], kind='stable')[:room]]
+                idx.sort()
+            else:
+                idx = idx[:room]
+        return idx
+
+    def _manage(self, rep: StepReport, left_out: np.ndarray, dt: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
         xc, Pc = self._xc, self._Pc
         pxx, pxy, pyy = Pc[0, 0], Pc[0, 1], Pc[1, 1]
@@ -288,6 +327,15 @@ class ImmIpdaTracker:
         self._confirmed = self._confirmed | newly
         rep.confirmed = int(np.count_nonzero(newly))
         alive = finite & (self._exist >= cfg.terminate) & (major <= self.config.track.max_position_std ** 2)
+        if left_out.any():
+            rep.over_budget = int(np.count_nonzero(alive & left_out))
+            alive &= ~left_out
+        if coverage is not None:
+            inside = coverage.contains(xc[:2].T)
+            self._outside = np.where(inside, 0.0, self._outside + dt)
+            gone = alive & (self._outside > self.config.track.max_time_outside)
+            rep.left_coverage = int(np.count_nonzero(gone))
+            alive &= ~gone
         rep.terminated = int(np.count_nonzero(finite & ~alive))
         n_conf = int(np.count_nonzero(self._confirmed & alive))
         if self.config.track.merge_threshold > 0 and (rep.confirmed or n_conf > 1):
@@ -307,6 +355,7 @@ class ImmIpdaTracker:
         self._alive = alive
         if not alive.all():
             self._ids, self._exist, self._confirmed = self._ids[alive], self._exist[alive], self._confirmed[alive]
+            self._outside = self._outside[alive]
             self._x, self._P, self._mu = self._x[..., alive], self._P[..., alive], self._mu[:, alive]
             self._xc, self._Pc = self._xc[:, alive], self._Pc[..., alive]
 
@@ -322,6 +371,7 @@ class ImmIpdaTracker:
         self._mu = np.concatenate((self._mu, np.full((m, k), 1.0 / m)), axis=-1)
         self._exist = np.concatenate((self._exist, np.full(k, self.config.existence.initial)))
         self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
+        self._outside = np.concatenate((self._outside, np.zeros(k)))
         self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
         self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
 

@@ -321,12 +321,16 @@ def test_constant_clutter_source_ignores_detection_densities():
     assert np.array_equal(ra, rb)
 
 
-def test_cap_on_tracks_drops_the_least_likely_tentative_ones():
+def test_cap_on_tracks_holds_at_initiation_and_drops_the_least_likely_tentative_ones():
     rng = np.random.default_rng(27)
     trk = ImmIpdaTracker(config(**{'track.max_tracks': 50}))
     for k in range(5):
         out = trk.step(float(k), rng.uniform(-1000, 1000, (200, 2)))
-    assert len(out) <= 50 + 200 and trk.report.capped > 0
+        assert len(out) <= 50
+    assert trk.report.not_initiated > 0
+    trk.configure(config(**{'track.max_tracks': 20}))
+    out = trk.step(5.0, np.zeros((0, 2)))
+    assert trk.report.capped > 0 and len(out) == 20
 
 
 def test_reconfiguring_keeps_tracks_unless_the_modes_change():
