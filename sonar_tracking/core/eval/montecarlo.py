@@ -3,9 +3,15 @@
 Run ``i`` of a study seeded ``seed`` draws from ``SeedSequence(seed).spawn(n)[i]``: its random
 numbers depend only on the study seed and its index, so splitting runs over ``jobs`` processes
 (or running them in one) gives identical results, returned in run order.
+
+Worker processes start with the glibc allocator settings of :mod:`sonar_tracking.core.allocator`
+(glibc reads them only at process start): when this process does not already run with them, the
+workers come from a ``forkserver`` started with them instead of being forked from this process.
 """
 from __future__ import annotations
 
+import contextlib
+import multiprocessing
 import os
 import sys
 import time
@@ -13,6 +19,8 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any, Callable, Sequence
 
 import numpy as np
+
+from ..allocator import allocator_applied, allocator_env
 
 __all__ = ['run_seeds', 'run_monte_carlo', 'Progress', 'default_jobs']
 
@@ -78,9 +86,27 @@ def run_monte_carlo(fn: Callable[[Any, np.random.SeedSequence], Any], item: Any,
                 progress.update()
         return out
     out = []
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
+    with _worker_pool(jobs) as pool:
         for result in pool.map(_call, tasks, chunksize=max(1, n_runs // (8 * jobs))):
             out.append(result)
             if progress:
                 progress.update()
     return out
+
+
+@contextlib.contextmanager
+def _worker_pool(jobs: int):
+    """A process pool whose workers run with the allocator settings (see the module docstring)."""
+    if allocator_applied():
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            yield pool
+        return
+    saved = dict(os.environ)
+    # The forkserver, started at the first worker, inherits this environment; ours is restored after.
+    os.environ.update(allocator_env())
+    try:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context('forkserver')) as pool:
+            yield pool
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)

@@ -46,7 +46,7 @@ def predict(x: np.ndarray, P: np.ndarray, F: np.ndarray, Q: np.ndarray,
         ops = transition_operators(F)
     x_pred = np.einsum('mij,jmt->imt', F, x)
     p_flat = P.reshape(n * n, m, t)
-    if t * ops.shape[1] <= _BLOCK_ELEMENTS:
+    if t * ops.shape[1] * ops.shape[2] <= _BLOCK_ELEMENTS:
         # All modes in one batched product, (M, n^2, n^2) @ (M, n^2, T), small enough for one thread.
         out = np.matmul(ops, p_flat.transpose(1, 0, 2)).transpose(1, 0, 2)
         out = out + Q.reshape(m, n * n).T[:, :, None]

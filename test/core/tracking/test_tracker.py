@@ -329,7 +329,7 @@ def test_cap_on_tracks_holds_at_initiation_and_drops_the_least_likely_tentative_
         assert len(out) <= 50
     assert trk.report.not_initiated > 0
     trk.configure(config(**{'track.max_tracks': 20}))
-    out = trk.step(5.0, np.zeros((0, 2)))
+    out = trk.step(5.0, np.stack([out['x'] + out['vx'], out['y'] + out['vy']], axis=1))
     assert trk.report.capped > 0 and len(out) == 20
 
 
