@@ -15,14 +15,15 @@ from sonar_tracking.tools.bench_cases import tracking
 
 def test_cases_limits_and_baselines():
     cases = bench.cases()
-    for n in tracking.CLUTTER:
-        c = cases[f'tracking.imm_ipda.c{n}']
+    for key in [f't{n}' for n in tracking.TARGETS] + [f'c{n}' for n in tracking.CLUTTER]:
+        c = cases[f'tracking.imm_ipda.{key}']
         assert c.self_timed and c.group == 'tracking'
-        assert c.compare_to == (f'tracking.stonesoup.c{n}' if n in tracking.STONESOUP else None)
-    assert cases['tracking.imm_ipda.c20'].limit_s == 0.5e-3
-    assert cases['tracking.imm_ipda.c400'].limit_s == 5e-3
-    for n in tracking.STONESOUP:
-        assert f'tracking.stonesoup.c{n}' in cases
+        assert c.compare_to == (f'tracking.stonesoup.{key}' if key in tracking.STONESOUP else None)
+        assert c.limit_s == tracking.LIMITS.get(key)
+    assert tracking.LIMITS == {'t1': 0.35e-3, 't200': 3e-3, 'c10000': 0.1}
+    for key in tracking.STONESOUP:
+        assert f'tracking.stonesoup.{key}' in cases
+    assert cases['tracking.imm_ipda.d20000'].self_timed
 
 
 def test_detections_are_seeded_and_shared():
@@ -31,6 +32,19 @@ def test_detections_are_seeded_and_shared():
         assert ta == tb and np.array_equal(za, zb) and np.array_equal(Ra, Rb) and np.array_equal(ra, rb)
     counts = [len(z) for _, z, _, _ in tracking.scans(400, 100)]
     assert 380 < np.mean(counts) < 420 and np.allclose(a[0][3], 50 / 1e6)
+    many = tracking.scans(0, 50, n_targets=200)
+    assert 170 < np.mean([len(z) for _, z, _, _ in many]) < 190          # P_D 0.9 of 200 targets
+
+
+def test_growth_exponent_is_the_log_log_slope_from_the_previous_row():
+    assert tracking._series_previous('t1') is None and tracking._series_previous('c100') is None
+    prev = tracking._series_previous('c10000')
+    assert prev == ('tracking.imm_ipda.c1000', 1000.0, 10000.0)
+    tracking._STEPPERS['test.growth'] = type('S', (), {'tracks': [1]})()
+    tracking._MEDIANS['tracking.imm_ipda.c1000'] = 1e-3
+    r = bench.Result(name='test.growth', group='tracking', description='', median_s=1e-2, p25_s=0, p75_s=0, min_s=0,
+                     max_s=0, repeats=1, number=1)
+    assert tracking._derived('test.growth', 10000, prev)(r)['growth'] == 1.0
 
 
 def test_our_case_steps_one_scan_per_call():

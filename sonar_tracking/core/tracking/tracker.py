@@ -328,7 +328,7 @@ class ImmIpdaTracker:
         rep.confirmed = int(np.count_nonzero(newly))
         alive = finite & (self._exist >= cfg.terminate) & (major <= self.config.track.max_position_std ** 2)
         if left_out.any():
-            rep.over_budget = int(np.count_nonzero(alive & left_out))
+            rep.over_budget = int(np.count_nonzero(left_out))
             alive &= ~left_out
         if coverage is not None:
             inside = coverage.contains(xc[:2].T)

@@ -94,3 +94,44 @@ def test_existence_chain_eq24_and_posterior_eq40():
     assert post / (1 - post) == pytest.approx(0.3 / 0.7 * 2.5)
     # The 0/0 case is 0, never NaN.
     assert update_existence(np.array([1.0]), np.array([0.0]))[0] == 0.0
+
+
+def test_screened_duplicates_equal_the_all_pairs_test():
+    """The gating-index screen of duplicate_tracks finds exactly what confirmed x all tracks finds."""
+    from sonar_tracking.core.tracking.management import duplicate_tracks
+    rng = np.random.default_rng(31)
+    for trial in range(40):
+        n = int(rng.integers(2, 60))
+        x = np.concatenate((rng.uniform(-50, 50, (2, n)), rng.normal(0, 2, (2, n))))
+        if trial % 2:
+            x[:, n // 2:] = x[:, :n - n // 2] + rng.normal(0, 1, (4, n - n // 2))   # near copies
+        a = rng.normal(size=(n, 4, 4))
+        P = np.moveaxis(a @ a.swapaxes(1, 2) * rng.uniform(0.5, 20, (n, 1, 1)) + np.eye(4), 0, -1)
+        confirmed = rng.random(n) < 0.4
+        ids = rng.permutation(n) + 1
+        got = duplicate_tracks(x, P, np.ones(n), confirmed, ids, 9.49)
+        want = np.zeros(n, dtype=bool)
+        for c in np.flatnonzero(confirmed):
+            for j in range(n):
+                if j == c:
+                    continue
+                diff = x[:, c] - x[:, j]
+                if diff @ np.linalg.solve(P[..., c] + P[..., j], diff) < 9.49:
+                    c_wins = (not confirmed[j]) or ids[c] < ids[j]
+                    want[j if c_wins else c] = True
+        assert np.array_equal(got, want)
+
+
+def test_initiation_ratio_is_the_expected_target_likelihood_over_clutter():
+    """E[N(nu; 0, S)] for nu ~ N(0, S) is 1 / ((4 pi)^(d/2) sqrt(det S)): checked by sampling."""
+    from scipy import stats
+
+    from sonar_tracking.core.tracking.management import initiation_ratio
+    rng = np.random.default_rng(32)
+    R = np.array([[[25.0, 6.0], [6.0, 16.0]]])
+    dt, speed, pd, rho = 2.0, 15.0, 0.9, 1e-4
+    S = 2 * R[0] + dt ** 2 * speed ** 2 / 3 * np.eye(2)
+    nu = rng.multivariate_normal(np.zeros(2), S, 200_000)
+    density = stats.multivariate_normal(np.zeros(2), S).pdf(nu)
+    got = initiation_ratio(R, np.array([rho]), speed, dt, pd)[0]
+    assert got == pytest.approx(pd * density.mean() / rho, rel=0.01)
