@@ -5,8 +5,9 @@ and hands its node one checked sector at a time, in stamp order, with the sonar 
 
 * the image and its geometry are paired by stamp; a half that never finds its partner is dropped
   with a warning;
-* a malformed pair (encoding, sizes, geometry that does not match the image) is dropped with the
-  adapter's reason;
+* a malformed pair (encoding, sizes, geometry that does not match the image or lies beyond the
+  physical bounds, values that cannot be echoes) is dropped with the reason
+  (:func:`~sonar_tracking.core.sector.check_sector`, the same verdict in every consumer);
 * stamps follow the package's time rule (:mod:`sonar_tracking.ros.timeline`): late ones are
   dropped, a big step back restarts the node (``on_reset``);
 * the pose comes from :class:`~sonar_tracking.ros.pose.PoseSource`: odometry interpolated at the
@@ -26,7 +27,7 @@ from sensor_msgs.msg import Image, LaserScan
 
 import msg_adapters as ma
 from sonar_tracking.core.config import setting
-from sonar_tracking.core.sector import SectorGeometry
+from sonar_tracking.core.sector import SectorError, SectorGeometry, check_sector
 
 from .node import InputConfig, SonarNode
 from .pose import Pose, PoseConfig, PoseSource
@@ -85,7 +86,8 @@ class SectorInput:
     def _accept(self, pair: ma.SectorPair) -> None:
         try:
             amplitudes, geometry = ma.sector_from_messages(pair.image, pair.info)
-        except ma.AdapterError as exc:
+            check_sector(amplitudes, geometry)
+        except (ma.AdapterError, SectorError) as exc:
             self.node.say('error', f'sector at {pair.stamp_ns / 1e9:.3f} s dropped: {exc}', 'malformed')
             return
         stamp = pair.stamp_ns
