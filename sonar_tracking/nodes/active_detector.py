@@ -101,9 +101,7 @@ class ActiveDetectorNode(SonarNode):
                            float(ok['y'][np.argmax(ok['existence'])])) if len(ok) else None
 
     # -- processing --------------------------------------------------------------------------
-    def _on_reset(self, back: float) -> None:
-        self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): detector restarted from '
-                                  f'threshold {self.config.threshold.initial:g}')
+    def _on_reset(self) -> None:
         self.detector.reset()
         self.best_track = None
 

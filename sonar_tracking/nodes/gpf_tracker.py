@@ -41,17 +41,13 @@ from sensor_msgs.msg import Image, PointCloud2
 from visualization_msgs.msg import MarkerArray
 
 import msg_adapters as ma
-from msg_adapters.map_info import map_info_to_grid
+from msg_adapters.map_info import fls_image, map_info_to_grid
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
-from sonar_tracking.ros import LATE, RESET, InputConfig, PoseConfig, PoseSource, SonarNode, TimeGuard, output_profile, run_node
+from sonar_tracking.ros import InputConfig, PoseConfig, PoseSource, SonarNode, output_profile, run_node
 
-__all__ = ['GpfNodeConfig', 'GpfTrackerNode', 'check_fls_image', 'main']
-
-#: Filtering leaves round-off below zero (-1.5e-15 seen); anything further below is a bad image.
-_ROUND_OFF = 1e-6
-
+__all__ = ['GpfNodeConfig', 'GpfTrackerNode', 'main']
 
 @dataclass(frozen=True)
 class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig):
@@ -69,23 +65,6 @@ class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig):
                                read_only=True)
 
 
-def check_fls_image(image: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarray:
-    """The ``fls/image`` array as float32 (round-off negatives clipped to 0), or ValueError saying
-    what is wrong with it."""
-    if image.dtype != np.float32:
-        raise ValueError(f'fls/image must be 32FC1 (processed intensity), got {image.dtype}')
-    if image.shape != grid_shape:
-        raise ValueError(f'fls/image is {image.shape[0]} x {image.shape[1]} pixels but its image_info says '
-                         f'{grid_shape[0]} x {grid_shape[1]}')
-    bad = ~np.isfinite(image)
-    if bad.any():
-        raise ValueError(f'fls/image has {int(bad.sum())} NaN or infinite pixels; no-data pixels must be 0')
-    negative = image < -_ROUND_OFF
-    if negative.any():
-        raise ValueError(f'fls/image has {int(negative.sum())} negative pixels; intensities are >= 0')
-    return np.maximum(image, 0.0, dtype=np.float32)
-
-
 class GpfTrackerNode(SonarNode):
     """Runs a :class:`~sonar_tracking.core.gpf.GpfTracker` on FLS frames."""
 
@@ -98,7 +77,6 @@ class GpfTrackerNode(SonarNode):
         self.tracker = GpfTracker(self.config, np.random.default_rng(self.config.seed),
                                   feature_config=self.config.features)
         self.frames = ma.StampPairer(self.PARTS, self.config.max_pending)
-        self.time = TimeGuard()
         self.origin_ns: int | None = None
         self.resets = 0
         self.processed = 0
@@ -119,6 +97,12 @@ class GpfTrackerNode(SonarNode):
     def on_change(self, old: GpfNodeConfig, new: GpfNodeConfig) -> None:
         self.tracker.configure(new, new.features)
 
+    def _restart(self) -> None:
+        self.tracker.reset()
+        self.pose.clear()
+        self.origin_ns = None
+        self.resets += 1
+
     # -- inputs ------------------------------------------------------------------------------
     def _on_part(self, part: str, msg) -> None:
         try:
@@ -138,7 +122,7 @@ class GpfTrackerNode(SonarNode):
         where = f'frame at {stamp / 1e9:.3f} s'
         try:
             grid = map_info_to_grid(frame['info'])
-            image = check_fls_image(ma.image_to_array(frame['image']), grid.shape)
+            image = fls_image(frame['image'], grid.shape)
             regions = ma.cloud_to_array(frame['regions'])
             names = set(regions.dtype.names or ())
             if not {'x', 'y'} <= names:
@@ -146,18 +130,8 @@ class GpfTrackerNode(SonarNode):
         except (ma.AdapterError, ValueError) as exc:
             self.say('error', f'{where} dropped: {exc}', 'malformed')
             return
-        verdict, back = self.time.check(stamp, self.config.time_jump_reset)
-        if verdict == LATE:
-            self.say('warning', f'{where} is not newer than the last one ({self.time.last_ns / 1e9:.3f} s): dropped',
-                     'stamp_order')
+        if not self.admit(stamp, 'frame', self._restart):
             return
-        if verdict == RESET:
-            self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): the tracker starts again')
-            self.tracker.reset()
-            self.time.reset()
-            self.pose.clear()
-            self.origin_ns = None
-            self.resets += 1
         if self.origin_ns is None:
             self.origin_ns = stamp   # times relative to the first stamp keep nanosecond resolution
         t = (stamp - self.origin_ns) * 1e-9

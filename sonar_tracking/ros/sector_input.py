@@ -31,7 +31,6 @@ from sonar_tracking.core.sector import SectorError, SectorGeometry, check_sector
 
 from .node import InputConfig, SonarNode
 from .pose import Pose, PoseConfig, PoseSource
-from .timeline import LATE, RESET, TimeGuard
 
 __all__ = ['SectorInputConfig', 'SectorInput']
 
@@ -51,12 +50,11 @@ class SectorInput:
     working in the sensor frame).
     """
 
-    def __init__(self, node: SonarNode, on_sector: Callable[..., bool], on_reset: Callable[[float], None],
+    def __init__(self, node: SonarNode, on_sector: Callable[..., bool], on_reset: Callable[[], None],
                  use_odometry: Callable[[], bool] = lambda: True) -> None:
         self.node = node
         self.on_sector, self.on_reset, self.use_odometry = on_sector, on_reset, use_odometry
         self.pairer = ma.SectorPairer(node.config.max_pending)
-        self.time = TimeGuard()
         self._waiting: deque[tuple[int, np.ndarray, SectorGeometry, str, float]] = deque()
         qos = node.input_qos()
         self.pose = PoseSource(node, lambda: node.config, qos, lambda text: node.say('error', text, 'bad_odometry'),
@@ -91,19 +89,15 @@ class SectorInput:
             self.node.say('error', f'sector at {pair.stamp_ns / 1e9:.3f} s dropped: {exc}', 'malformed')
             return
         stamp = pair.stamp_ns
-        guard = TimeGuard(self._waiting[-1][0]) if self._waiting else self.time
-        verdict, back = guard.check(stamp, self.node.config.time_jump_reset)
-        if verdict == LATE:
-            self.node.say('warning', f'sector at {stamp / 1e9:.3f} s is not newer than the last one '
-                          f'({guard.last_ns / 1e9:.3f} s): dropped', 'stamp_order')
+        if not self.node.admit(stamp, 'sector', self._restart, self._waiting[-1][0] if self._waiting else None):
             return
-        if verdict == RESET:
-            self._waiting.clear()
-            self.pairer.clear()
-            self.pose.clear()
-            self.time.reset()
-            self.on_reset(back)
         self._waiting.append((stamp, amplitudes, geometry, pair.image.header.frame_id, time.monotonic()))
+
+    def _restart(self) -> None:
+        self._waiting.clear()
+        self.pairer.clear()
+        self.pose.clear()
+        self.on_reset()
 
     def _pose(self, stamp_ns: int, waited: float) -> Pose | None:
         return self.pose.pose_at(stamp_ns, waited) if self.use_odometry() else (0.0, 0.0, 0.0)
@@ -117,4 +111,4 @@ class SectorInput:
                 return
             self._waiting.popleft()
             if self.on_sector(stamp, amplitudes, geometry, pose, frame_id):
-                self.time.accept(stamp)
+                self.node.time.accept(stamp)
