@@ -52,9 +52,9 @@ SENSOR_PRESETS: dict[str, dict] = {
 #: Flat setting overrides of the structured scenarios, by layout (applied after the scenario's own).
 STRUCTURE_PRESETS: dict[str, dict] = {
     'tank': {'structure.kind': 'tank', 'output.coding': 'db'},
-    'harbour': {'structure.kind': 'harbour', 'structure.seabed_range_min': 1850.0,
-                'structure.seabed_range_max': 1950.0, 'structure.texture_scale': 60.0,
-                'structure.ringdown_length': 20.0, 'output.coding': 'db'},
+    'harbour': {'structure.kind': 'harbour', 'structure.seabed_range_min': 1900.0,
+                'structure.seabed_range_max': 2000.0, 'structure.texture_scale': 60.0,
+                'structure.ringdown_length': 10.0, 'output.coding': 'db'},
 }
 
 #: The ESC paper's sonar position [m].

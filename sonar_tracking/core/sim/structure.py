@@ -98,7 +98,7 @@ class StructureConfig(Config):
                                    high=1e4, read_only=True)
     ringdown_db: float = setting(30.0, 'transducer ringdown at the first range bin re the reverberation mean',
                                  unit='dB', low=-20.0, high=80.0, read_only=True)
-    ringdown_length: float = setting(0.4, 'range over which the ringdown falls by 1/e', unit='m', low=1e-3,
+    ringdown_length: float = setting(0.2, 'range over which the ringdown falls by 1/e', unit='m', low=1e-3,
                                      high=1e4, read_only=True)
     steadiness: float = setting(8.0, 'gamma shape of the ping-to-ping fluctuation of static echoes '
                                 '(1 = as speckled as reverberation)', low=0.5, high=1e4, read_only=True)
