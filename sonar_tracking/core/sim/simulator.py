@@ -135,12 +135,17 @@ class Simulator:
 
 
 def describe(config: SimConfig) -> str:
-    """One line for logs: scenario, sensor, sizes and timing."""
+    """One line for logs: scenario, sensor, sizes and timing (and structure and output coding when set)."""
+    extra = ''
+    if config.structure.kind != 'none':
+        extra += f'; {config.structure.kind} structure'
+    if config.output.coding == 'db':
+        extra += f'; 8-bit dB output ({config.output.db_span:g} dB span, gain floor {config.output.gain_floor:g})'
     if config.is_harbour:
         g = config.harbour.geometry()
         return (f'{config.scenario} on the harbour sonar: {g.n_bins} x {g.n_beams} cells of '
                 f'{config.harbour.cell_depth:.2f} m x {math.degrees(config.harbour.cell_width):.3f} deg, '
-                f'one scan every {config.harbour.scan_period:g} s')
+                f'one scan every {config.harbour.scan_period:g} s{extra}')
     s = config.seaking
     return (f'{config.scenario} on SeaKing {s.frequency_khz:g} kHz: {s.n_bins} bins to {s.range_max:g} m, '
-            f'step {s.step_deg:g} deg, ping every {s.ping_period * 1e3:.1f} ms, sweep {s.sweep_time:.2f} s')
+            f'step {s.step_deg:g} deg, ping every {s.ping_period * 1e3:.1f} ms, sweep {s.sweep_time:.2f} s{extra}')
