@@ -23,9 +23,9 @@ def _seaking_full_turn():
     return lambda: sonar.next_sector(scene, rng)
 
 
-def _harbour_scan():
+def _harbour_scan(scenario: str = 'scenario2'):
     from sonar_tracking.core.sim import SimConfig, Simulator
-    sim = Simulator(SimConfig.for_scenario('scenario2'), np.random.default_rng(0))
+    sim = Simulator(SimConfig.for_scenario(scenario), np.random.default_rng(0))
     sonar, scene, rng = sim.sensor, sim.scene, sim.noise_rng
     return lambda: sonar.next_sector(scene, rng)
 
@@ -95,6 +95,8 @@ register(Case(name='sim.seaking_full_turn', group='sim', make=_seaking_full_turn
               description='SeaKing 360 deg turn, 400 steps x 600 bins, two towed targets (core)', repeats=20))
 register(Case(name='sim.harbour_scan', group='sim', make=_harbour_scan, limit_s=0.005,
               description='harbour scan, 86 x 69 cells, Scenario 2 (core)'))
+register(Case(name='sim.harbour_scan_structured', group='sim', make=lambda: _harbour_scan('scenario2_structured'),
+              limit_s=0.005, description='harbour scan with quay, breakwater, piles, seabed band, ringdown (core)'))
 register(Case(name='sim.fan_paint_harbour', group='sim', make=_fan_paint('scenario2'), limit_s=0.002,
               description='/sonar/fan paint of a harbour scan, 512 px canvas (core.fan)'))
 register(Case(name='sim.fan_paint_seaking', group='sim', make=_fan_paint('fls8'), limit_s=0.002,
