@@ -18,8 +18,9 @@ Codings (``coding``):
 * ``display``: values are display brightness with gamma ``gamma``: amplitude =
   (c / full_scale)^gamma (floats taken as already in [0, 1]).
 
-In every coding an exact zero stays 0: a sensor that reports 0 measured nothing there (below its
-gain floor, or a blanked cell), which is not the same as a weak echo. Cells at or below
+An exact zero count stays 0: a sensor that reports 0 measured nothing there (below its gain floor,
+or a blanked cell), which is not the same as a weak echo (float dB values have no such count: 0 dB
+is a level). Only ``db`` values may be negative. Cells at or below
 ``noise_floor`` (linear amplitude, after decoding) are set to 0 as well. Rows nearer than
 ``blank_range`` (transducer ringdown) are set to 0, and rows beyond ``max_range`` are cut off.
 """
@@ -72,7 +73,7 @@ def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: flo
     """Linear echo amplitude (float64, a new array) of sensor values in ``coding``.
 
     ``full_scale`` is the count of full scale of an integer image (:func:`full_scale_of`); None
-    for float values. Exact zeros stay 0. Raises ValueError for an unknown coding.
+    for float values. Exact zero counts stay 0. Raises ValueError for an unknown coding.
     """
     v = np.asarray(values, dtype=np.float64)
     if coding == 'linear_amplitude':
@@ -80,10 +81,11 @@ def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: flo
     if coding == 'linear_power':
         return np.sqrt(np.maximum(v, 0.0))
     if coding == 'db':
-        db = v * (db_span / full_scale) if full_scale else v
-        step = db_span / full_scale if full_scale else 0.0
-        # relative to count 1 (or 0 dB for floats), so the weakest reported echo is about 1
-        out = np.power(10.0, (db - step) / 20.0)
+        if not full_scale:
+            return np.power(10.0, v / 20.0)   # float dB: 0 dB is a level like any other
+        step = db_span / full_scale
+        # relative to count 1, so the weakest reported echo is about 1; count 0 is no echo
+        out = np.power(10.0, (v - 1.0) * (step / 20.0))
     elif coding == 'display':
         scaled = np.clip(v / full_scale, 0.0, None) if full_scale else np.clip(v, 0.0, None)
         out = np.power(scaled, gamma)

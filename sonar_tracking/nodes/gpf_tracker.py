@@ -80,7 +80,7 @@ class GpfTrackerNode(SonarNode):
         self.origin_ns: int | None = None
         self.resets = 0
         self.processed = 0
-        inputs = self.input_qos(10)
+        inputs = self.input_qos(50)   # a burst of frames (a replay) waits instead of being overwritten
         self.subscribe(Image, 'fls/image', lambda m: self._on_part('image', m), inputs)
         self.subscribe(MapMetaData, 'fls/image_info', lambda m: self._on_part('info', m), inputs)
         self.subscribe(PointCloud2, 'fls/regions', lambda m: self._on_part('regions', m), inputs)

@@ -54,24 +54,26 @@ def _with(t, values):
 
 
 # (name, bad sector pair): every one must be dropped by both sector consumers
-BAD_SECTORS = {
-    'unknown encoding': lambda t: sector(t, encoding='rgb8'),
-    'data short of its step': _short,
-    'fewer beams than the geometry': lambda t: sector(t, amplitudes(1)[:, :40]),
-    'angle_increment 1e-30': lambda t: sector(t, angle_increment=1e-30, angle_max=GEOM.angle_min + 80e-30),
-    'angle_increment 1e-5': lambda t: sector(t, angle_increment=1e-5, angle_max=GEOM.angle_min + 80e-5),
-    'angle_increment 0': lambda t: sector(t, angle_increment=0.0, angle_max=GEOM.angle_min),
-    'angle_increment NaN': lambda t: sector(t, angle_increment=math.nan),
-    'span wider than 2 pi': lambda t: sector(t, angle_increment=0.1, angle_max=GEOM.angle_min + 8.0),
-    'range_max 3e38': lambda t: sector(t, range_max=3e38),
-    'range_min above range_max': lambda t: sector(t, range_min=40.0),
-    'negative range_min': lambda t: sector(t, range_min=-1.0),
-    'NaN amplitude': lambda t: _with(t, np.nan),
-    'infinite amplitude': lambda t: _with(t, np.inf),
-    'negative amplitudes': lambda t: _with(t, -2.0),
-    'all negative': lambda t: sector(t, -amplitudes(2)),
-    'stale stamp (0.5 s old)': lambda t: sector(t - 1.5),
-    'repeated stamp': lambda t: sector(t - 1.0),
+BAD_SECTORS = {   # case: (bad sector pair at t, what the logged reason says)
+    'unknown encoding': (lambda t: sector(t, encoding='rgb8'), 'rgb8'),
+    'data short of its step': (_short, 'short'),
+    'fewer beams than the geometry': (lambda t: sector(t, amplitudes(1)[:, :40]), 'beams'),
+    'angle_increment 1e-30': (lambda t: sector(t, angle_increment=1e-30, angle_max=GEOM.angle_min + 80e-30),
+                              'beams per turn'),
+    'angle_increment 1e-5': (lambda t: sector(t, angle_increment=1e-5, angle_max=GEOM.angle_min + 80e-5),
+                             'beams per turn'),
+    'angle_increment 0': (lambda t: sector(t, angle_increment=0.0, angle_max=GEOM.angle_min), 'angle_increment'),
+    'angle_increment NaN': (lambda t: sector(t, angle_increment=math.nan), 'not finite'),
+    'span wider than 2 pi': (lambda t: sector(t, angle_increment=0.1, angle_max=GEOM.angle_min + 8.0), 'full turn'),
+    'range_max 3e38': (lambda t: sector(t, range_max=3e38), 'beyond any sonar'),
+    'range_min above range_max': (lambda t: sector(t, range_min=40.0), 'range_min'),
+    'negative range_min': (lambda t: sector(t, range_min=-1.0), 'range_min'),
+    'NaN amplitude': (lambda t: _with(t, np.nan), 'NaN'),
+    'infinite amplitude': (lambda t: _with(t, np.inf), 'infinite'),
+    'negative amplitudes': (lambda t: _with(t, -2.0), 'negative'),
+    'all negative': (lambda t: sector(t, -amplitudes(2)), 'negative'),
+    'stale stamp (0.5 s old)': (lambda t: sector(t - 1.5), 'not newer than the last'),
+    'repeated stamp': (lambda t: sector(t - 1.0), 'not newer than the last'),
 }
 
 
@@ -82,6 +84,9 @@ class Harness:
         self.node = node
         self.subs = {s.topic_name: s for s in node.subscriptions}
         self.out: list = []
+        self.said: list[str] = []
+        say = node.say
+        node.say = lambda severity, text, reason=None: (self.said.append(text), say(severity, text, reason))
         for name in outputs:
             getattr(node, name).publish = lambda m, name=name: self.out.append((name, m))
 
@@ -118,8 +123,10 @@ def test_sector_consumers_drop_bad_sectors_and_stay_unchanged(inproc, name, case
         h.sector(sector(1.0))
         h.sector(sector(2.0))
     before = node.drops()
-    node.sector(BAD_SECTORS[case](2.5))
-    assert node.drops() == before + 1, f'{case}: not dropped with a reason'
+    bad, reason = BAD_SECTORS[case]
+    node.sector(bad(2.5))
+    assert node.drops() == before + 1, f'{case}: not dropped'
+    assert reason in node.said[-1], f'{case}: the log says {node.said[-1]!r}'
     for h in (node, ref):
         h.sector(sector(3.0))
     assert node.out == ref.out, f'{case}: the next good output differs from a node that never saw it'
@@ -165,11 +172,11 @@ def _short_cloud(t):
 
 
 BAD_DETECTIONS = {
-    'data short': _short_cloud,
-    'no x and y': lambda t: cloud(t, np.zeros(2, [('range', '<f8')])),
-    'stale stamp (0.5 s old)': lambda t: cloud(t - 1.5, detections(t - 1.5)),
-    'repeated stamp': lambda t: cloud(t - 1.0, detections(t - 1.0)),
-    'unknown field datatype': lambda t: _bad_datatype(t),
+    'data short': (_short_cloud, 'short'),
+    'no x and y': (lambda t: cloud(t, np.zeros(2, [('range', '<f8')])), 'need fields x and y'),
+    'stale stamp (0.5 s old)': (lambda t: cloud(t - 1.5, detections(t - 1.5)), 'not newer than the last'),
+    'repeated stamp': (lambda t: cloud(t - 1.0, detections(t - 1.0)), 'not newer than the last'),
+    'unknown field datatype': (lambda t: _bad_datatype(t), 'datatype 42'),
 }
 
 
@@ -189,8 +196,10 @@ def test_imm_ipda_tracker_drops_bad_detections_and_keeps_its_tracks(inproc, case
         for t in (1.0, 2.0):
             h.feed('/detections', cloud(t, detections(t)))
     before = node.drops()
-    node.feed('/detections', BAD_DETECTIONS[case](2.5))
+    bad, reason = BAD_DETECTIONS[case]
+    node.feed('/detections', bad(2.5))
     assert node.drops() == before + 1, case
+    assert reason in node.said[-1], node.said[-1]
     for h in (node, ref):
         h.feed('/detections', cloud(3.0, detections(3.0)))
     assert node.out == ref.out and len(node.out) == 3
@@ -205,6 +214,8 @@ def test_bad_rows_go_one_by_one_and_the_rest_is_tracked(inproc):
     rows['clutter_density'][3] = 0.0
     h.feed('/detections', cloud(1.0, rows))
     assert len(h.out) == 1 and h.node.tracker.report.n_measurements == 6 and len(h.node.tracker.report.rejected) == 3
+    said = h.said[-1]
+    assert 'dropped 3 of 6' in said and 'not finite' in said and 'positive definite' in said and 'clutter' in said
 
 
 def test_a_nan_existence_track_never_becomes_the_esc_focus(inproc):
@@ -264,15 +275,16 @@ def _info(**changes):
 
 
 BAD_FRAMES = {
-    'mono8 image': lambda t: _bad_frame(t, 'image', lambda m: ma.array_to_image(
-        (ma.image_to_array(m)).astype(np.uint8), 'mono8', stamp_ns=ma.header_ns(m))),
-    'NaN pixel': lambda t: _bad_frame(t, 'image', _pixels(np.nan)),
-    'negative pixel': lambda t: _bad_frame(t, 'image', _pixels(-1.0)),
-    'tilted image_info': lambda t: _bad_frame(t, 'info', _tilted),
-    'resolution 1e-9': lambda t: _bad_frame(t, 'info', _info(resolution=1e-9)),
-    '8000 x 8000 image_info': lambda t: _bad_frame(t, 'info', _info(width=8000, height=8000)),
-    'regions without x, y': lambda t: _bad_frame(t, 'regions', lambda m: cloud(t, np.zeros(1, [('range', '<f8')]))),
-    'stale stamp': lambda t: frame(t - 1.5),
+    'mono8 image': (lambda t: _bad_frame(t, 'image', lambda m: ma.array_to_image(
+        (ma.image_to_array(m)).astype(np.uint8), 'mono8', stamp_ns=ma.header_ns(m))), 'must be 32FC1'),
+    'NaN pixel': (lambda t: _bad_frame(t, 'image', _pixels(np.nan)), 'NaN'),
+    'negative pixel': (lambda t: _bad_frame(t, 'image', _pixels(-1.0)), 'negative'),
+    'tilted image_info': (lambda t: _bad_frame(t, 'info', _tilted), 'tilted'),
+    'resolution 1e-9': (lambda t: _bad_frame(t, 'info', _info(resolution=1e-9)), 'resolution'),
+    '8000 x 8000 image_info': (lambda t: _bad_frame(t, 'info', _info(width=8000, height=8000)), 'more than'),
+    'regions without x, y': (lambda t: _bad_frame(t, 'regions', lambda m: cloud(t, np.zeros(1, [('range', '<f8')]))),
+                             'need fields x and y'),
+    'stale stamp': (lambda t: frame(t - 1.5), 'not newer than the last'),
 }
 
 
@@ -290,8 +302,10 @@ def test_gpf_tracker_drops_bad_frames_and_keeps_its_tracks(inproc, case):
         for t in (1.0, 2.0):
             send(h, frame(t))
     before = node.drops()
-    send(node, BAD_FRAMES[case](2.5))
+    bad, reason = BAD_FRAMES[case]
+    send(node, bad(2.5))
     assert node.drops() == before + 1, case
+    assert reason in node.said[-1], node.said[-1]
     for h in (node, ref):
         send(h, frame(3.0))
     assert node.out == ref.out and len(node.out) == 3
@@ -305,3 +319,39 @@ def test_round_off_negatives_are_no_fault(inproc):
         h.feed(topic, f[part])
     assert h.drops() == 0 and len(h.out) == 1
     assert copy  # deep copies are not needed: every case builds its own messages
+
+
+def _feed_tracker(h, t, kind):
+    if kind == 'imm':
+        h.feed('/detections', cloud(t, detections(t)))
+    else:
+        f = frame(t)
+        for part, topic in (('info', '/fls/image_info'), ('image', '/fls/image'), ('regions', '/fls/regions')):
+            h.feed(topic, f[part])
+
+
+@pytest.mark.parametrize('name', ['active_detector', 'fls_features', 'imm_ipda_tracker', 'gpf_tracker'])
+def test_a_jump_back_restarts_the_node_as_new_and_ids_are_never_reused(inproc, name):
+    if name in SECTOR_NODES:
+        module, cls, outputs = SECTOR_NODES[name]
+        params = {'image.publish': 'sector'} if name == 'fls_features' else {}
+        node, fresh = make(inproc, module, cls, outputs, **params), make(inproc, module, cls, outputs, **params)
+        for t in (11.0, 12.0, 13.0):
+            node.sector(sector(t))
+        node.sector(sector(1.0))       # 12 s back: a new recording
+        fresh.sector(sector(1.0))
+        assert node.out[-len(outputs):] == fresh.out and node.drops() == 0
+        return
+    kind = 'imm' if name == 'imm_ipda_tracker' else 'gpf'
+    module = 'sonar_tracking.nodes.' + name
+    cls = 'ImmIpdaTrackerNode' if kind == 'imm' else 'GpfTrackerNode'
+    node, fresh = (make(inproc, module, cls, ['pub_tracks'], publish_tentative=True) for _ in range(2))
+    for t in (11.0, 12.0, 13.0):
+        _feed_tracker(node, t, kind)
+    old_ids = set(ma.cloud_to_array(node.out[-1][1])['track_id'].tolist())
+    _feed_tracker(node, 1.0, kind)
+    _feed_tracker(fresh, 1.0, kind)
+    mine, theirs = ma.cloud_to_array(node.out[-1][1]), ma.cloud_to_array(fresh.out[-1][1])
+    assert old_ids and len(mine) == len(theirs) >= 1 and min(mine['track_id']) > max(old_ids)
+    fields = [f for f in mine.dtype.names if f != 'track_id']
+    assert all(np.array_equal(mine[f], theirs[f]) for f in fields), 'after the restart it tracks as a fresh node'

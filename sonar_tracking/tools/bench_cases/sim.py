@@ -59,10 +59,11 @@ def _node_rate0():
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Image, LaserScan, PointCloud2
 
-    from sonar_tracking.ros.runtime import configure_dds
+    from sonar_tracking.ros.runtime import configure_dds, private_domain
 
     def measure() -> float:
         configure_dds()
+        private_domain()   # another pipeline on this machine must not answer for ours
         rclpy.init()
         node = rclpy.create_node('bench_sim_probe')
         qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
