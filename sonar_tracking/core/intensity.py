@@ -34,7 +34,7 @@ import numpy as np
 from .config import Config, ConfigError, setting
 from .sector import SectorGeometry
 
-__all__ = ['CODINGS', 'IntensityConfig', 'decode', 'full_scale_of', 'gate_ranges', 'condition']
+__all__ = ['CODINGS', 'IntensityConfig', 'decode', 'encode_db', 'full_scale_of', 'gate_ranges', 'condition']
 
 CODINGS = ('linear_amplitude', 'linear_power', 'db', 'display')
 
@@ -93,6 +93,26 @@ def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: flo
         raise ValueError(f'unknown intensity coding {coding!r}; one of {list(CODINGS)}')
     out[v == 0.0] = 0.0
     return out
+
+
+def encode_db(amplitude: np.ndarray, db_span: float = 60.0, full_scale: int = 255,
+              reference: float = 1.0) -> np.ndarray:
+    """Log-compressed integer counts of linear amplitudes: the inverse of :func:`decode` with ``db``.
+
+    Count 1 is the amplitude ``reference`` (the sensor's gain floor) and each further count is
+    ``db_span / full_scale`` dB more, rounded to the nearest count and clipped at ``full_scale``;
+    amplitudes more than half a count below ``reference`` (and non-finite or negative values)
+    are 0, no echo. ``decode(encode_db(a, ...), 'db', ...)`` is ``a / reference`` within half a
+    count. Returns uint8 for ``full_scale`` 255, uint16 up to 65535.
+    """
+    if not 1 <= full_scale <= 65535:
+        raise ValueError(f'full_scale = {full_scale} must be in [1, 65535]')
+    a = np.asarray(amplitude, dtype=np.float64)
+    step = db_span / full_scale
+    with np.errstate(divide='ignore', invalid='ignore'):
+        counts = 1.0 + np.rint(20.0 * np.log10(a / reference) / step)
+    counts = np.where(np.isfinite(counts) & (counts >= 1.0), np.minimum(counts, full_scale), 0.0)
+    return counts.astype(np.uint8 if full_scale <= 255 else np.uint16)
 
 
 def gate_ranges(geometry: SectorGeometry, blank_range: float, max_range: float) -> tuple[int, int]:
