@@ -1,6 +1,7 @@
 """``seaking_sim``: the simulated scanning sonar (SeaKing 675/325 kHz or the harbour sonar).
 
-Publishes, per sector (DESIGN §4): ``sonar/sector`` (32FC1 amplitudes), ``sonar/sector_info``
+Publishes, per sector (DESIGN §4): ``sonar/sector`` (32FC1 amplitudes; mono8 dB counts with
+``output.coding: db``, as the ``*_structured`` scenarios do), ``sonar/sector_info``
 (its geometry, same header), ``sonar/fan`` (mono8 picture, painted only while someone listens),
 ``sonar/truth`` and ``platform/odometry``; and ``/clock`` whenever it stamps with simulated time.
 
@@ -30,6 +31,7 @@ import msg_adapters as ma
 from msg_adapters.odometry import pose_to_odometry
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fan import PolarCanvas, to_mono8
+from sonar_tracking.core.intensity import decode
 from sonar_tracking.core.sim import SimConfig, SimSector, Simulator, describe
 from sonar_tracking.core.sim.presets import SCENARIOS
 from sonar_tracking.ros import CLOCK_TOPIC, ConfigParameters, descriptor_for, output_profile, run_node, start_value
@@ -198,7 +200,7 @@ class SeaKingSimNode(Node):
     def _publish(self, s: SimSector) -> None:
         c = self.config
         stamp_ns = self._stamp_ns(s.stamp)
-        self.pub_sector.publish(ma.array_to_image(s.amplitudes, '32FC1', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
+        self.pub_sector.publish(ma.array_to_image(s.amplitudes, stamp_ns=stamp_ns, frame_id=c.sensor_frame))
         self.pub_info.publish(ma.geometry_to_scan(s.geometry, amplitudes=s.amplitudes, stamp_ns=stamp_ns,
                                                   frame_id=c.sensor_frame))
         ids, states = self.sim.truth(s.stamp)
@@ -211,7 +213,8 @@ class SeaKingSimNode(Node):
         self.pub_odom.publish(pose_to_odometry(*s.pose, vx, vy, stamp_ns=stamp_ns, frame_id=c.world_frame,
                                                child_frame_id=c.sensor_frame))
         if self.pub_fan.get_subscription_count() > 0:   # painting is most of the cost: only for a viewer
-            self.canvas.paint(s.amplitudes, s.geometry)
+            self.canvas.paint(s.amplitudes if c.output.coding != 'db' else
+                              decode(s.amplitudes, 'db', db_span=c.output.db_span, full_scale=255.0), s.geometry)
             fan = to_mono8(self.canvas.image, c.fan_dynamic_range_db)
             self.pub_fan.publish(ma.array_to_image(fan, 'mono8', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
         if self.pub_clock is not None:
