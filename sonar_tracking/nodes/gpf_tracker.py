@@ -62,8 +62,8 @@ class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig):
     markers_tentative: bool = setting(False, 'draw tentative tracks in gpf/tracks/markers as well')
     marker_scale: float = setting(0.5, 'diameter of a track sphere in gpf/tracks/markers', unit='m', low=0.0,
                                   high=1e5, low_open=True)
-    max_pending: int = setting(8, 'frames kept while waiting for their image, info and regions', low=1, high=1000,
-                               read_only=True)
+    max_pending: int = setting(32, 'frames kept while waiting for their image, info and regions (a burst of '
+                               'frames whose images lag)', low=1, high=1000, read_only=True)
 
 
 class GpfTrackerNode(SonarNode):
