@@ -9,7 +9,7 @@ import pytest
 # and the package's DDS profile, as every process of the package uses it.
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-from sonar_tracking.nodes._runtime import configure_dds  # noqa: E402 (must precede rclpy)
+from sonar_tracking.ros.runtime import configure_dds  # noqa: E402 (must precede rclpy)
 configure_dds()
 
 

@@ -103,14 +103,14 @@ def test_pairer_either_order_and_stale_drop():
     assert pair.stamp_ns == 2 and p.pop_dropped() == []
     assert p.add_info(msg(4)) is None
     assert p.add_image(msg(4)).stamp_ns == 4
-    assert p.pop_dropped() == [('image', 3)]
+    assert p.pop_dropped() == [(3, ('image',))]
 
 
 def test_pairer_bounded_pending():
     p = SectorPairer(max_pending=2)
     for s in (1, 2, 3):
         p.add_image(msg(s))
-    assert p.pop_dropped() == [('image', 1)]
+    assert p.pop_dropped() == [(1, ('image',))]
     assert p.add_info(msg(1)) is None
 
 

@@ -11,7 +11,7 @@ import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 import msg_adapters as ma
-from sonar_tracking.nodes._image_info import ImageInfoPairer, grid_to_map_info, map_info_to_grid
+from msg_adapters.map_info import grid_to_map_info, map_info_to_grid
 
 pytestmark = pytest.mark.ros
 
@@ -30,11 +30,11 @@ def subscribe(ros, got: dict):
 
 def frames_of(got: dict) -> list[tuple]:
     """``(image array, grid, regions, frame_id)`` per stamp, paired as a consumer would."""
-    pairer, out = ImageInfoPairer(), []
+    pairer, out = ma.StampPairer(('image', 'info')), []
     regions = {ma.header_ns(m): m for m in got['/fls/regions']}
     for img, info in zip(got['/fls/image'], got['/fls/image_info']):
-        pairer.add_info(info)
-        pair = pairer.add_image(img)
+        pairer.add('info', ma.stamp_to_ns(info.map_load_time), info)
+        pair = pairer.add('image', ma.header_ns(img), img)
         assert pair is not None, 'image and image_info must come with the same stamp'
         stamp = ma.header_ns(img)
         assert img.encoding == '32FC1' and regions[stamp].header.frame_id == img.header.frame_id
@@ -180,7 +180,7 @@ def test_parameters_refused_with_reasons_or_applied(ros, launch):
     r = set_('segment.seed_db', 1.0)
     assert not r.successful and 'grow_db' in r.reason
     r = set_('image.resolution', 0.05)
-    assert not r.successful and 'start-up' in r.reason
+    assert not r.successful and 'read-only' in r.reason
     r = set_('filter.window_bins', 4)
     assert not r.successful and 'odd' in r.reason
     r = set_('features.glcm_levels', 1)

@@ -12,7 +12,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 import msg_adapters as ma
 from sonar_tracking.core.fls import ImageGrid
-from sonar_tracking.nodes._image_info import grid_to_map_info
+from msg_adapters.map_info import grid_to_map_info
 
 pytestmark = pytest.mark.ros
 
@@ -145,6 +145,7 @@ def test_no_target_gives_empty_tracks_messages(tracker):
     assert tracker.tracks[0].width == 0 and len(tracker.tracks[0].fields) == len(ma.GPF_TRACK_DTYPE.names)
 
 
+@pytest.mark.parametrize('tracker', [('publish_tentative:=true',)], indirect=True)
 def test_bad_input_is_dropped_with_a_reason_and_the_node_keeps_running(tracker):
     from nav_msgs.msg import MapMetaData
     from sensor_msgs.msg import Image
@@ -229,7 +230,7 @@ def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker)
     r = set_('fusion.thresholds', [1.0, 2.0])
     assert not r.successful and 'one or 5' in r.reason
     r = set_('seed', 4)
-    assert not r.successful and 'start-up' in r.reason
+    assert not r.successful and 'read-only' in r.reason
     assert set_('fusion.mode', 'wf').successful
     assert set_('cues.features', [3.0, 24.0]).successful
     rng = np.random.default_rng(5)

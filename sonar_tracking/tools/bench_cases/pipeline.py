@@ -21,7 +21,7 @@ N_SECTORS = 100
 
 def _latency():
     def measure() -> list[float]:
-        from sonar_tracking.nodes._runtime import configure_dds
+        from sonar_tracking.ros.runtime import configure_dds
         configure_dds()
         import rclpy
         from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -42,10 +42,10 @@ def _latency():
         rclpy.init()
         node = rclpy.create_node('bench_latency')
         qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
-        pub_img = node.create_publisher(Image, '/sonar/sector', qos)
-        pub_info = node.create_publisher(LaserScan, '/sonar/sector_info', qos)
+        pub_img = node.create_publisher(Image, 'sonar/sector', qos)
+        pub_info = node.create_publisher(LaserScan, 'sonar/sector_info', qos)
         sent, received = {}, {}
-        node.create_subscription(PointCloud2, '/tracks',
+        node.create_subscription(PointCloud2, 'tracks',
                                  lambda m: received.setdefault(ma.header_ns(m), time.perf_counter()), qos)
         try:
             deadline = time.monotonic() + 60

@@ -4,20 +4,22 @@ An FLS image is laid out as an OccupancyGrid (``sonar_tracking.core.fls.grid``),
 describes it exactly: ``resolution`` [m/pixel], ``width`` (columns, along the grid x axis),
 ``height`` (rows), ``origin`` the pose of the outer corner of pixel (0, 0) in the Image's
 ``header.frame_id``, and ``map_load_time`` = the Image's ``header.stamp``, by which a consumer
-pairs the two (:class:`ImageInfoPairer`). Works on rclpy messages and rosbags dataclasses alike.
-(Candidate for ``msg_adapters``; kept here until it moves.)
+pairs the two (:class:`~msg_adapters.pairing.StampPairer`). Works on rclpy messages and rosbags
+dataclasses alike. Not re-exported by ``msg_adapters`` (it needs the FLS grid): import
+``msg_adapters.map_info``.
 """
 from __future__ import annotations
 
 import math
-from collections import OrderedDict
 from typing import Any
 
-import msg_adapters as ma
-from msg_adapters.types import MessageTypes, rclpy_types
 from sonar_tracking.core.fls.grid import ImageGrid
 
-__all__ = ['grid_to_map_info', 'map_info_to_grid', 'ImageInfoPairer']
+from .errors import AdapterError
+from .stamps import ns_to_stamp
+from .types import MessageTypes, rclpy_types
+
+__all__ = ['grid_to_map_info', 'map_info_to_grid']
 
 
 def grid_to_map_info(grid: ImageGrid, stamp_ns: int, types: MessageTypes | None = None) -> Any:
@@ -29,7 +31,7 @@ def grid_to_map_info(grid: ImageGrid, stamp_ns: int, types: MessageTypes | None 
                                         z=0.0),
                      orientation=types.new('geometry_msgs/msg/Quaternion', x=0.0, y=0.0, z=math.sin(half),
                                            w=math.cos(half)))
-    return types.new('nav_msgs/msg/MapMetaData', map_load_time=ma.ns_to_stamp(stamp_ns, types),
+    return types.new('nav_msgs/msg/MapMetaData', map_load_time=ns_to_stamp(stamp_ns, types),
                      resolution=float(grid.resolution), width=int(grid.width), height=int(grid.height), origin=pose)
 
 
@@ -40,41 +42,15 @@ def map_info_to_grid(msg: Any) -> ImageGrid:
         values = dict(resolution=float(msg.resolution), width=int(msg.width), height=int(msg.height),
                       x=float(p.x), y=float(p.y), qx=float(q.x), qy=float(q.y), qz=float(q.z), qw=float(q.w))
     except AttributeError as exc:
-        raise ma.AdapterError(f'not a nav_msgs/MapMetaData: missing field {exc.name!r}') from exc
+        raise AdapterError(f'not a nav_msgs/MapMetaData: missing field {exc.name!r}') from exc
     norm = math.sqrt(values['qx'] ** 2 + values['qy'] ** 2 + values['qz'] ** 2 + values['qw'] ** 2)
     if not math.isfinite(norm) or abs(norm - 1.0) > 1e-3:
-        raise ma.AdapterError(f'image_info origin orientation is not a unit quaternion (norm {norm:.6f})')
+        raise AdapterError(f'image_info origin orientation is not a unit quaternion (norm {norm:.6f})')
     if abs(values['qx']) > 1e-6 or abs(values['qy']) > 1e-6:
-        raise ma.AdapterError('image_info origin is tilted; an FLS image grid turns about z only')
+        raise AdapterError('image_info origin is tilted; an FLS image grid turns about z only')
     yaw = 2.0 * math.atan2(values['qz'], values['qw'])
     try:
         return ImageGrid(resolution=values['resolution'], width=values['width'], height=values['height'],
                          origin_x=values['x'], origin_y=values['y'], origin_yaw=math.remainder(yaw, 2 * math.pi))
     except ValueError as exc:
-        raise ma.AdapterError(f'image_info: {exc}') from exc
-
-
-class ImageInfoPairer:
-    """Pairs ``/fls/image`` Images with their ``/fls/image_info`` by stamp (either may come first)."""
-
-    def __init__(self, max_pending: int = 8) -> None:
-        self.max_pending = max_pending
-        self._images: OrderedDict[int, Any] = OrderedDict()
-        self._infos: OrderedDict[int, Any] = OrderedDict()
-
-    def add_image(self, msg: Any) -> tuple[Any, Any] | None:
-        """Offer an Image; returns ``(image, info)`` once both halves are here."""
-        return self._add(ma.header_ns(msg), msg, self._images, self._infos, image_first=True)
-
-    def add_info(self, msg: Any) -> tuple[Any, Any] | None:
-        """Offer a MapMetaData; returns ``(image, info)`` once both halves are here."""
-        return self._add(ma.stamp_to_ns(msg.map_load_time), msg, self._infos, self._images, image_first=False)
-
-    def _add(self, stamp: int, msg: Any, mine: OrderedDict, other: OrderedDict, image_first: bool):
-        match = other.pop(stamp, None)
-        if match is None:
-            mine[stamp] = msg
-            while len(mine) > self.max_pending:
-                mine.popitem(last=False)
-            return None
-        return (msg, match) if image_first else (match, msg)
+        raise AdapterError(f'image_info: {exc}') from exc
