@@ -177,7 +177,10 @@ def format_table(records: np.ndarray, columns: list[Column], *, title: str = '',
             else f'{len(records)} records')
     lines = [f'{title}  {what}'.strip()]
     if dropped:
-        lines.append(f'(not shown to fit {WIDTH} columns: {", ".join(dropped)}; choose with --fields)')
+        note = f'(not shown, to fit {WIDTH} columns: {", ".join(dropped)})'
+        if len(note) > WIDTH:
+            note = f'(not shown, to fit {WIDTH} columns: {len(dropped)} fields, {dropped[0]} ... {dropped[-1]})'
+        lines.append(note)
     lines.append(' '.join(c.title.rjust(c.width) for c in columns))
     values = [column_values(shown, c.name) for c in columns]
     for i in range(min(len(shown), max_rows)):
@@ -274,11 +277,9 @@ class Printer:
 
 def _subscription_qos(node, topic: str, choice: str, depth: int = 10):
     """The QoS to subscribe with, or None while ``auto`` has no publisher to follow yet."""
-    from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
-    if choice == 'reliable':
-        return QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE)
-    if choice == 'sensor_data':
-        return qos_profile_sensor_data
+    if choice != 'auto':
+        from sonar_tracking.ros.qos import input_profile
+        return input_profile(choice, depth)
     infos = node.get_publishers_info_by_topic(topic)
     if not infos:
         return None
@@ -317,7 +318,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error('--count must be >= 0 and --rows >= 1')
     wanted = 1 if args.once else args.count
 
-    from sonar_tracking.nodes._runtime import prepare_process
+    from sonar_tracking.ros.runtime import prepare_process
     prepare_process()
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
