@@ -369,10 +369,16 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0)
         topics = [resolve_name(t, config.namespace) for t in config.record_topics]
         recorder = NodeSpec(name='bag_record', executable='bag_record', on_exit='stop',
                             extra_args=['-o', str(record_dir), *topics])
+        late = _late_topics(topics, config.namespace)
+        if late and any(spec.wait_for for spec in specs):
+            say('bag_record subscribes to ' + ', '.join(late) + ' only once they are published (it knows the '
+                "package's topics in the root namespace only): nobody waits for it there, and the bag may miss "
+                'their first messages')
         for spec in specs:
             if spec.wait_for:
                 for topic in topics:
-                    waits[spec.name][topic] = waits[spec.name].get(topic, 0) + 1
+                    if topic not in late:
+                        waits[spec.name][topic] = waits[spec.name].get(topic, 0) + 1
         specs.insert(0, recorder)
         waits[recorder.name] = {}
     params_dir = tempfile.TemporaryDirectory(prefix='sonar_stack_')
@@ -380,6 +386,15 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0)
         return _run(config, specs, waits, Path(params_dir.name), grace, say, lock, stop)
     finally:
         params_dir.cleanup()
+
+
+def _late_topics(topics: list[str], namespace: str) -> list[str]:
+    """Package topics moved into ``namespace``, which ``bag_record`` subscribes to only once they are
+    published: a node waiting for the recorder to listen there before it publishes would wait forever."""
+    from .bag_record import PACKAGE_TOPICS
+    prefix = namespace.rstrip('/')
+    return [t for t in topics if prefix and t not in PACKAGE_TOPICS and t.startswith(prefix + '/')
+            and t[len(prefix):] in PACKAGE_TOPICS]
 
 
 def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, params_dir: Path, grace: float,

@@ -332,3 +332,10 @@ def test_two_harbour_stacks_in_namespaces_track_their_own_targets_without_cross_
         own = np.hypot(last['x'] - truth[ns]['x'], last['y'] - truth[ns]['y'])
         cross = np.hypot(last['x'] - truth[other]['x'], last['y'] - truth[other]['y'])
         assert own.min() < 30.0 and cross.min() > 100.0, (ns, last[['track_id', 'x', 'y']], truth)
+
+
+def test_namespaced_package_topics_are_left_out_of_the_recorder_wait():
+    from sonar_tracking.tools.sonar_stack import _late_topics
+    topics = ['/a/tracks', '/a/sonar/sector', '/a/fls/image_info', '/clock', '/tracks']
+    assert _late_topics(topics, '/a') == ['/a/tracks', '/a/sonar/sector']
+    assert _late_topics(topics, '/') == []
