@@ -8,18 +8,20 @@ exit status is 0 if that node exited cleanly, 1 otherwise), ``restart`` it (up t
 
     on_exit: stop            # default for every node
     max_restarts: 3
+    namespace: harbour       # optional: the whole stack in /harbour
     nodes:
       seaking_sim:
         executable: seaking_sim
         params_file: sim_harbour.yaml
         parameters: {rate: 1.0}
-        remappings: {/sonar/fan: /harbour/fan}
+        remappings: {sonar/fan: fan}
         on_exit: stop
-        wait_for: {/sonar/sector: 1, /detections: 1}   # start once these have that many subscribers
+        wait_for: {sonar/sector: 1, detections: 1}   # start once these have that many subscribers
       active_detector:
         params_file: active_detector.yaml     # executable defaults to the node's key
+        namespace: left                       # optional: this node in /harbour/left
     record:
-      topics: [/sonar/sector, /sonar/sector_info, /detections, /tracks]
+      topics: [sonar/sector, sonar/sector_info, detections, tracks]
 
 Nodes start in file order; one with ``wait_for`` starts only once each named topic has at least
 that many subscribers (so a simulator running at full speed starts after the pipeline listens).
