@@ -174,6 +174,18 @@ def test_stacks_are_found_by_name_in_the_package_config(tmp_path, monkeypatch):
         find_stack('nowhere')
 
 
+def test_a_stack_name_is_looked_up_in_the_installed_share(tmp_path, monkeypatch):
+    import sonar_tracking.resources as resources
+    from sonar_tracking.tools.sonar_stack import find_stack, shipped_stacks
+    share = tmp_path / 'install' / 'share' / 'sonar_tracking' / 'config'
+    share.mkdir(parents=True)
+    (share / 'stack_tank.yaml').write_text('nodes: {seaking_sim: {}}')
+    monkeypatch.setattr(resources, 'config_dirs', lambda: [tmp_path / 'src' / 'config', share])
+    monkeypatch.chdir(tmp_path)
+    assert find_stack('tank') == share / 'stack_tank.yaml' == find_stack('stack_tank.yaml')
+    assert shipped_stacks() == [share / 'stack_tank.yaml']
+
+
 def test_installed_sonar_stack_finds_a_stack_by_name_outside_the_source_tree(tmp_path):
     install = Path(os.environ.get('SONAR_TRACKING_INSTALL', Path(__file__).resolve().parents[2] / 'install'))
     if not (install / 'setup.bash').exists():
@@ -185,7 +197,8 @@ def test_installed_sonar_stack_finds_a_stack_by_name_outside_the_source_tree(tmp
                        capture_output=True, text=True, timeout=60, cwd=tmp_path, env=env)
     assert r.returncode == 0, r.stderr
     first = r.stdout.splitlines()[0]
-    assert first.startswith('# ') and first.endswith('share/sonar_tracking/config/stack_harbour.yaml in /auv1')
+    # colcon --symlink-install finds the source tree's config first, a plain install its share/.
+    assert first.startswith('# ') and first.endswith('/config/stack_harbour.yaml in /auv1')
     sim = next(line for line in r.stdout.splitlines() if 'sonar_tracking.nodes.seaking_sim' in line)
     assert '-r __ns:=/auv1' in sim and 'duration:=30' in sim
 
