@@ -193,7 +193,8 @@ def load_stack(path: Path) -> StackConfig:
         if not isinstance(wait_for, dict) or not all(isinstance(v, int) and v >= 0 for v in wait_for.values()):
             raise StackError(f'{path}: node {name}: wait_for must map topics to subscriber counts')
         nodes.append(NodeSpec(name=name, executable=exe,
-                              params_file=_resolve(spec['params_file'], path.parent) if spec.get('params_file') else None,
+                              params_file=(_resolve(spec['params_file'], path.parent) if spec.get('params_file')
+                                           else None),
                               parameters={k: _number(v) for k, v in (spec.get('parameters') or {}).items()},
                               remappings=dict(spec.get('remappings') or {}), on_exit=on_exit,
                               extra_args=[str(a) for a in spec.get('args') or []], wait_for=dict(wait_for),
@@ -314,8 +315,8 @@ class Child:
 
     def start(self) -> None:
         env = dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1', PYTHONUNBUFFERED='1')
-        self.proc = subprocess.Popen(command(self.spec, self.params_dir), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                     text=True, bufsize=1, start_new_session=True, env=env)
+        self.proc = subprocess.Popen(command(self.spec, self.params_dir), stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True, env=env)
         threading.Thread(target=self._relay, args=(self.proc,), daemon=True).start()
 
     def _relay(self, proc: subprocess.Popen) -> None:
@@ -459,7 +460,8 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``sonar_stack``."""
     parser = argparse.ArgumentParser(prog='sonar_stack', description=__doc__.split('\n\n')[0], allow_abbrev=False,
                                      epilog='e.g. sonar_stack harbour --namespace /auv1 --set seaking_sim.duration=30')
-    parser.add_argument('stack', nargs='?', help='stack name or file: harbour, fls, stack_harbour.yaml, path/to/my.yaml')
+    parser.add_argument('stack', nargs='?',
+                        help='stack name or file: harbour, fls, stack_harbour.yaml, path/to/my.yaml')
     parser.add_argument('--config', help='stack file, or the name of one in the package config (as STACK)')
     parser.add_argument('--set', action='append', default=[], metavar='NODE.PARAM=VALUE',
                         help='set a parameter of a node of the stack (repeatable; the value is YAML)')
