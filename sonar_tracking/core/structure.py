@@ -1,0 +1,450 @@
+"""Static-structure rejection for both front ends: walls, seabed bands, piles, hulls, ringdown.
+
+Real sonar scenes are dominated by static structure: bright, extended, always there. Neither paper
+treats it (the ESC paper's clutter is Poisson in open water, the FLS paper's tank is empty apart from
+its targets), so this module does what sonar trackers do (a clutter map of persistent echoes, and size
+gates on extended returns), in one place for ``active_detector`` and ``fls_features``. Both rules
+judge a *connected echo*: a connected group of above-threshold cells in the detector (its
+8-connected component, see :mod:`.detection.cells`), a grown region in the FLS. Everything that
+echo produced is dropped when it is structure.
+
+**1. Persistent-echo background** (a clutter map of echo frequency, learnt online). Every map cell
+keeps a discounted frequency of echo over its looks::
+
+    S <- S exp(-dt / T) + z,    W <- W exp(-dt / T) + 1,    p = S / W
+
+``z = 1`` when the cell echoed in this look (detector: a cell above the current threshold; FLS: a
+pixel above the region growth level ``segment.grow_db``), ``dt`` the time since the cell's
+previous look and ``T = time_constant``. Until ``T`` has passed ``p`` is close to the plain
+fraction of looks with echo; after that it is an exponential average over about ``T`` seconds (the
+discounting is in time, so a sonar that looks at a cell every 0.1 s and one that looks every 5 s
+forget at the same rate). A cell is *persistent* when ``p >= persistence`` and it has been watched
+for at least ``warmup`` seconds; a cell not looked at for ``3 T`` starts afresh. An echo with at
+least ``veto_fraction`` of its cells on persistent map cells is vetoed. The map learns from every
+above-level cell, vetoed or not, after the veto decision for the look.
+
+Which moving targets are safe: a target whose echo is ``L`` long along its track, moving at ``v``,
+keeps a map cell of size ``c`` echoing for ``d = (L + c) / v`` seconds. That cell's ``p`` then
+reaches at most ``d / min(age, T)`` (``age >= warmup`` before any veto), so the target is never
+learnt while ``d < persistence * min(warmup, T)``. With the defaults (``T = 60 s``, ``warmup =
+15 s``, ``persistence = 0.5``) that is ``d < 7.5 s``: an echo 2 m long with its cell is safe at
+0.27 m/s and faster, a 0.5 m/s target up to 3.75 m, a 1 m/s target up to 7.5 m. A target that stops
+is learnt after about ``T ln(1 / (1 - persistence)) = 42 s`` and then vetoed: the price of any
+clutter map, and the reason ``T`` is a setting. During the first ``warmup`` seconds nothing is
+vetoed by this rule; the shape gates below work from the first look.
+
+Where the map lives (``map``): ``sensor`` keeps one cell per range bin and beam bearing of the
+sensor (the polar resolution cells of a static sonar: exact, and fine near the sonar where a
+Cartesian grid would be coarse); ``world`` a square grid of ``world_cell`` metres in the world
+frame, in a window of ``2 range_max`` around the sonar that follows it (whole cells, history kept
+where windows overlap), for a moving sonar placed by odometry; ``auto`` uses the sensor map while
+the pose stays where it was first given and switches to the world map (learning again) once it
+moves by half a range bin or half a beam step. The FLS pipeline learns in its image frame with the
+world map (its image is in the sensor frame for a static sonar and the world frame for a moving
+one), once per completed sweep, so each pixel is one look per sweep.
+
+**2. Shape gates in metres** (``max_length``, ``max_width``, ``max_area``, ``elongated_length``,
+``max_aspect``). An echo's length and width are ``sqrt(12 lambda)`` of the eigenvalues ``lambda`` of
+the second moments of its cells, each cell counted with its own footprint (range bin by beam arc,
+or pixel): the sides of the rectangle with the same moments, so a single cell measures as its
+footprint. Its area is the sum of its cells' footprints. An echo is structure when it is longer
+than ``max_length``, wider (its narrow side) than ``max_width`` or larger than ``max_area``, or when
+it is elongated: at least ``elongated_length`` long and ``max_aspect`` times longer than wide (a
+wall face, a seabed band, a pile row). Targets of the papers are 0.3-3 m, so e.g. 6 m, 3 m, 10 m^2,
+3 m at aspect 4 separate them from walls and bands. 0 switches a gate off.
+
+Everything is off by default (``enabled``), so both pipelines reproduce the papers unless asked.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .config import Config, ConfigError, setting
+from .sector import SectorGeometry
+
+__all__ = ['StructureConfig', 'echo_shapes', 'is_structure_shape', 'PolarBackground', 'GridBackground',
+           'SectorBackground', 'vetoed_groups']
+
+_FORGET = 3.0          # a cell unseen for this many time constants starts afresh (5 % weight left)
+_CHUNK = 1 << 18       # sector cells placed in the world map per pass (bounds temporary memory)
+
+
+@dataclass(frozen=True)
+class StructureConfig(Config):
+    """Static-structure rejection: persistent-echo background and shape gates (see core/structure.py)."""
+
+    enabled: bool = setting(False, 'reject echoes of static structure (walls, seabed bands, piles): the '
+                            'persistent-echo veto and the shape gates below')
+    time_constant: float = setting(60.0, 'memory of the persistent-echo background: echo frequencies are averaged '
+                                   'over about this long', unit='s', low=1.0, high=1e6)
+    persistence: float = setting(0.5, 'a map cell that echoed in at least this fraction of its recent looks is '
+                                 'static structure; 1 = switch the persistence veto off', low=0.05, high=1.0)
+    warmup: float = setting(15.0, 'a map cell is judged only after it has been watched this long; moving '
+                            'targets are safe while (echo length + cell) / speed < persistence * warmup',
+                            unit='s', low=0.0, high=1e6)
+    veto_fraction: float = setting(0.5, 'an echo is vetoed when at least this fraction of its cells lie on '
+                                   'persistent map cells', low=0.0, low_open=True, high=1.0)
+    map: str = setting('auto', "where the background is learnt: 'sensor' (polar cells of a static sonar), 'world' "
+                       "(a grid in the world frame that follows a moving sonar) or 'auto' (sensor until the pose "
+                       'changes). The FLS pipeline always learns on its image grid', choices=('auto', 'sensor', 'world'))
+    world_cell: float = setting(0.0, 'cell size of the world-frame map; 0 = the sensor cell at mid range (detector) '
+                                'or the image pixel (FLS)', unit='m', low=0.0, high=1e4)
+    max_map_cells: int = setting(1_000_000, 'memory bound of the background map (24 bytes a cell); a bigger '
+                                 'world window gets coarser cells', low=1000, high=50_000_000, read_only=True)
+    max_length: float = setting(0.0, 'echoes longer than this are structure; 0 = no limit', unit='m',
+                                low=0.0, high=1e5)
+    max_width: float = setting(0.0, 'echoes whose narrow side is wider than this are structure; 0 = no limit',
+                               unit='m', low=0.0, high=1e5)
+    max_area: float = setting(0.0, 'echoes larger than this are structure; 0 = no limit', unit='m^2',
+                              low=0.0, high=1e9)
+    elongated_length: float = setting(0.0, 'echoes at least this long and max_aspect times longer than wide are '
+                                      'walls or seabed bands; 0 = off', unit='m', low=0.0, high=1e5)
+    max_aspect: float = setting(4.0, 'length / width from which an echo at least elongated_length long is a wall '
+                                'or band', low=1.0, high=1e4)
+
+    def validate(self) -> None:
+        super().validate()
+        if self.max_length and self.elongated_length >= self.max_length:
+            raise ConfigError(f'elongated_length = {self.elongated_length} m would never act: echoes longer than '
+                              f'max_length = {self.max_length} m are rejected already; make it shorter or 0')
+        if self.max_length and self.max_width and self.max_width >= self.max_length:
+            raise ConfigError(f'max_width = {self.max_width} m would never act: an echo is never wider than long '
+                              f'and max_length = {self.max_length} m; make it smaller or 0')
+
+    @property
+    def shape_gates(self) -> bool:
+        """Whether any shape gate is on."""
+        return bool(self.max_length or self.max_width or self.max_area or self.elongated_length)
+
+    @property
+    def persistence_veto(self) -> bool:
+        """Whether the persistent-echo veto is on (``persistence < 1``)."""
+        return self.persistence < 1.0
+
+
+# -- shapes ---------------------------------------------------------------------------------------
+
+def echo_shapes(x: np.ndarray, y: np.ndarray, labels: np.ndarray, n: int, var_xx: np.ndarray | float,
+                var_xy: np.ndarray | float, var_yy: np.ndarray | float,
+                cell_area: np.ndarray | float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Length, width [m] and area [m^2] of ``n`` echoes from their cells (see module docstring).
+
+    ``x, y`` cell centres [m] and ``labels`` the echo ``0..n-1`` of each cell; ``var_*`` each cell's
+    own footprint moments (``side^2 / 12``) and ``cell_area`` its area, per cell or one for all.
+    """
+    labels = np.asarray(labels, dtype=np.intp)
+    if n == 0:
+        z = np.zeros(0)
+        return z, z, z
+    cnt = np.bincount(labels, minlength=n).astype(float)
+    cnt = np.maximum(cnt, 1.0)
+
+    def mean(v) -> np.ndarray:
+        v = np.broadcast_to(np.asarray(v, dtype=float), labels.shape)
+        return np.bincount(labels, weights=v, minlength=n) / cnt
+    # Centre on each echo's first cell so large coordinates do not cancel.
+    first = np.full(n, -1, np.intp)
+    first[labels[::-1]] = np.arange(len(labels))[::-1]
+    dx = np.asarray(x, float) - np.asarray(x, float)[first][labels]
+    dy = np.asarray(y, float) - np.asarray(y, float)[first][labels]
+    mx, my = mean(dx), mean(dy)
+    cxx = mean(dx * dx) - mx * mx + mean(var_xx)
+    cyy = mean(dy * dy) - my * my + mean(var_yy)
+    cxy = mean(dx * dy) - mx * my + mean(var_xy)
+    half = 0.5 * (cxx + cyy)
+    root = np.sqrt(np.maximum(0.25 * (cxx - cyy) ** 2 + cxy * cxy, 0.0))
+    length = np.sqrt(12.0 * np.maximum(half + root, 0.0))
+    width = np.sqrt(12.0 * np.maximum(half - root, 0.0))
+    area = mean(cell_area) * cnt
+    return length, width, area
+
+
+def is_structure_shape(length: np.ndarray, width: np.ndarray, area: np.ndarray,
+                       config: StructureConfig) -> np.ndarray:
+    """The shape gates: True where an echo is too long, too wide, too large or elongated."""
+    c = config
+    out = np.zeros(np.shape(length), bool)
+    if c.max_length:
+        out |= length > c.max_length
+    if c.max_width:
+        out |= width > c.max_width
+    if c.max_area:
+        out |= area > c.max_area
+    if c.elongated_length:
+        out |= (length >= c.elongated_length) & (length >= c.max_aspect * width)
+    return out
+
+
+def vetoed_groups(labels: np.ndarray, n: int, on_persistent: np.ndarray, veto_fraction: float) -> np.ndarray:
+    """True for echoes ``0..n-1`` with at least ``veto_fraction`` of their cells persistent."""
+    labels = np.asarray(labels, dtype=np.intp)
+    cnt = np.bincount(labels, minlength=n)
+    hit = np.bincount(labels, weights=np.asarray(on_persistent, dtype=float), minlength=n)
+    return (cnt > 0) & (hit >= veto_fraction * cnt - 1e-9)
+
+
+# -- the echo-frequency rule ------------------------------------------------------------------------
+
+def _persistent(s: np.ndarray, w: np.ndarray, age: np.ndarray, idle: np.ndarray, config: StructureConfig) -> np.ndarray:
+    """The persistence test on map cells (module docstring, rule 1)."""
+    c = config
+    return (w > 0) & (s >= c.persistence * w) & (age >= c.warmup) & (idle <= _FORGET * c.time_constant)
+
+
+class PolarBackground:
+    """Echo frequency per sensor-frame polar cell: range bin x beam bearing (a static sonar).
+
+    Beams are kept by bearing on a ring of one turn, so a scanning head's sectors fall on the same
+    cells every sweep; only bearings that were looked at take memory. A change of range bins or beam
+    step starts a new map.
+    """
+
+    def __init__(self, config: StructureConfig) -> None:
+        self.config = config
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self._key: tuple | None = None
+        self.columns = 0
+
+    def _start(self, g: SectorGeometry) -> None:
+        self._key = (g.angle_increment, g.n_bins, g.range_min, g.range_max)
+        self._ring = max(1, int(round(2.0 * math.pi / g.angle_increment)))
+        self._ref = g.angle_min
+        self._col = np.full(self._ring, -1, np.int64)    # ring slot -> column of the arrays below
+        self._s = np.zeros((g.n_bins, 0), np.float32)
+        self._w = np.zeros((g.n_bins, 0), np.float32)
+        self._t_last = np.zeros(0)
+        self._t_first = np.zeros(0)
+        self.columns = 0
+
+    def _matches(self, g: SectorGeometry) -> bool:
+        key = (g.angle_increment, g.n_bins, g.range_min, g.range_max)
+        return self._key is not None and np.allclose(key, self._key, rtol=1e-9, atol=1e-12)
+
+    def _columns(self, g: SectorGeometry, allocate: bool) -> np.ndarray:
+        slots = np.rint((g.bearings() - self._ref) / g.angle_increment).astype(np.int64) % self._ring
+        cols = self._col[slots]
+        if allocate and (cols < 0).any():
+            new = np.unique(slots[cols < 0])
+            room = self.config.max_map_cells // max(1, g.n_bins) - self.columns
+            new = new[:max(0, room)]
+            if new.size:
+                cap = self._s.shape[1]
+                if self.columns + new.size > cap:  # grow geometrically: amortised O(1) per column
+                    grow = max(self.columns + new.size, 2 * cap)
+                    self._s = np.concatenate([self._s, np.zeros((g.n_bins, grow - cap), np.float32)], axis=1)
+                    self._w = np.concatenate([self._w, np.zeros((g.n_bins, grow - cap), np.float32)], axis=1)
+                    self._t_last = np.concatenate([self._t_last, np.zeros(grow - cap)])
+                    self._t_first = np.concatenate([self._t_first, np.full(grow - cap, np.nan)])
+                self._col[new] = self.columns + np.arange(new.size)
+                self._t_first[self.columns:self.columns + new.size] = np.nan
+                self.columns += new.size
+                cols = self._col[slots]
+        return cols
+
+    def update(self, echo: np.ndarray, geometry: SectorGeometry, t: float) -> None:
+        """One look at every cell of a sector: ``echo`` (bins x beams, bool) marks cells that echoed."""
+        if not self._matches(geometry):
+            self._start(geometry)
+        cols = self._columns(geometry, allocate=True)
+        ok = np.flatnonzero(cols >= 0)
+        if ok.size == 0:
+            return
+        c = cols[ok]
+        T = self.config.time_constant
+        dt = np.maximum(t - self._t_last[c], 0.0)
+        fresh = np.isnan(self._t_first[c]) | (dt > _FORGET * T)
+        k = np.where(fresh, 0.0, np.exp(-dt / T)).astype(np.float32)
+        self._s[:, c] = self._s[:, c] * k + echo[:, ok]
+        self._w[:, c] = self._w[:, c] * k + 1.0
+        self._t_first[c] = np.where(fresh, t, self._t_first[c])
+        self._t_last[c] = t
+
+    def persistent(self, rows: np.ndarray, beams: np.ndarray, geometry: SectorGeometry, t: float) -> np.ndarray:
+        """Whether cells ``(rows, beams)`` of a sector with ``geometry`` lie on persistent map cells."""
+        rows, beams = np.asarray(rows, np.intp), np.asarray(beams, np.intp)
+        if not self._matches(geometry) or rows.size == 0:
+            return np.zeros(rows.shape, bool)
+        cols = self._columns(geometry, allocate=False)[beams]
+        out = np.zeros(rows.shape, bool)
+        ok = cols >= 0
+        c, r = cols[ok], rows[ok]
+        out[ok] = _persistent(self._s[r, c], self._w[r, c], t - self._t_first[c], t - self._t_last[c], self.config)
+        return out
+
+    def persistent_mask(self, geometry: SectorGeometry, t: float) -> np.ndarray:
+        """Persistent cells of a whole sector (bins x beams, bool), for inspection and plots."""
+        rows, beams = np.indices(geometry.shape)
+        return self.persistent(rows.ravel(), beams.ravel(), geometry, t).reshape(geometry.shape)
+
+
+class GridBackground:
+    """Echo frequency per cell of a square world-frame grid in a window that follows the sonar.
+
+    The window is ``2 reach`` wide around the sonar position (``reach`` = the sector's maximum
+    range), on a global lattice of ``cell`` metres so a moved window keeps the history of the cells
+    it still covers. Cells are coarsened if the window would exceed ``max_map_cells``.
+    """
+
+    def __init__(self, config: StructureConfig, cell: float) -> None:
+        if not cell > 0:
+            raise ValueError(f'world map cell = {cell} m must be > 0')
+        self.config = config
+        self.requested_cell = float(cell)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.cell = self.requested_cell
+        self._i0 = self._j0 = 0
+        self._n = 0
+        self._s = np.zeros(0, np.float32)
+        self._w = np.zeros(0, np.float32)
+        self._t_last = np.zeros(0)
+        self._t_first = np.zeros(0)
+
+    def _follow(self, x: float, y: float, reach: float) -> None:
+        """Move (and size) the window to cover ``reach`` metres around ``(x, y)``."""
+        cell = max(self.requested_cell, 2.0 * reach / math.sqrt(self.config.max_map_cells))
+        if cell != self.cell and self._n:
+            self.reset()  # the reach grew past what the memory bound allows at this cell size
+        self.cell = cell
+        n = int(math.ceil(2.0 * reach / cell)) + 2
+        i0, j0 = int(math.floor((x - reach) / cell)) - 1, int(math.floor((y - reach) / cell)) - 1
+        if (i0, j0, n) == (self._i0, self._j0, self._n):
+            return
+        new = {'s': np.zeros(n * n, np.float32), 'w': np.zeros(n * n, np.float32), 't_last': np.zeros(n * n),
+               't_first': np.full(n * n, np.nan)}
+        if self._n:
+            # Copy the overlap of the old window (global indices i0.., j0..) into the new one.
+            a0, a1 = max(i0, self._i0), min(i0 + n, self._i0 + self._n)
+            b0, b1 = max(j0, self._j0), min(j0 + n, self._j0 + self._n)
+            if a0 < a1 and b0 < b1:
+                for name in new:
+                    old = getattr(self, '_' + name).reshape(self._n, self._n)
+                    new[name].reshape(n, n)[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = \
+                        old[a0 - self._i0:a1 - self._i0, b0 - self._j0:b1 - self._j0]
+        self._s, self._w, self._t_last, self._t_first = new['s'], new['w'], new['t_last'], new['t_first']
+        self._i0, self._j0, self._n = i0, j0, n
+
+    def _index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Flat window index of world points, -1 outside the window."""
+        i = np.floor(np.asarray(x) / self.cell).astype(np.int64) - self._i0
+        j = np.floor(np.asarray(y) / self.cell).astype(np.int64) - self._j0
+        ok = (i >= 0) & (i < self._n) & (j >= 0) & (j < self._n)
+        return np.where(ok, i * self._n + j, -1)
+
+    def update(self, samples, sensor_xy: tuple[float, float], reach: float, t: float) -> None:
+        """One look: ``samples`` yields ``(x, y, echo)`` arrays of world points seen in this look (any
+        number of chunks); every map cell with a point was looked at, and echoed if any point did."""
+        self._follow(sensor_xy[0], sensor_xy[1], reach)
+        seen = np.zeros(self._n * self._n, bool)
+        hit = np.zeros(self._n * self._n, bool)
+        for x, y, echo in samples:
+            idx = self._index(x, y)
+            ok = idx >= 0
+            seen[idx[ok]] = True
+            hit[idx[ok & np.asarray(echo, bool)]] = True
+        c = np.flatnonzero(seen)
+        if c.size == 0:
+            return
+        T = self.config.time_constant
+        dt = np.maximum(t - self._t_last[c], 0.0)
+        fresh = np.isnan(self._t_first[c]) | (dt > _FORGET * T)
+        k = np.where(fresh, 0.0, np.exp(-dt / T)).astype(np.float32)
+        self._s[c] = self._s[c] * k + hit[c]
+        self._w[c] = self._w[c] * k + 1.0
+        self._t_first[c] = np.where(fresh, t, self._t_first[c])
+        self._t_last[c] = t
+
+    def persistent(self, x: np.ndarray, y: np.ndarray, t: float) -> np.ndarray:
+        """Whether world points lie on persistent map cells."""
+        x = np.asarray(x, float)
+        out = np.zeros(x.shape, bool)
+        if self._n == 0 or x.size == 0:
+            return out
+        idx = self._index(x, y)
+        ok = idx >= 0
+        c = idx[ok]
+        out[ok] = _persistent(self._s[c], self._w[c], t - self._t_first[c], t - self._t_last[c], self.config)
+        return out
+
+
+def _sector_points(geometry: SectorGeometry, pose: tuple[float, float, float], rows: np.ndarray,
+                   beams: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World positions of sector cells ``(rows, beams)`` seen from ``pose``."""
+    r = geometry.range_min + geometry.range_resolution * np.asarray(rows, float)
+    b = geometry.angle_min + geometry.angle_increment * np.asarray(beams, float) + pose[2]
+    return pose[0] + r * np.cos(b), pose[1] + r * np.sin(b)
+
+
+class SectorBackground:
+    """The persistent-echo background of a sector sonar: the polar map while the sonar stays put,
+    the world grid when it moves (``map`` setting, see module docstring)."""
+
+    def __init__(self, config: StructureConfig) -> None:
+        self.config = config
+        self.polar = PolarBackground(config)
+        self.grid: GridBackground | None = None
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget everything, including where the sonar was."""
+        self.polar.reset()
+        self.grid = None
+        self._first_pose: tuple[float, float, float] | None = None
+        self.moving = self.config.map == 'world'
+
+    def _mode(self, geometry: SectorGeometry, pose: tuple[float, float, float]) -> str:
+        if self.config.map != 'auto' or self.moving:
+            return 'world' if self.config.map == 'world' or self.moving else 'sensor'
+        if self._first_pose is None:
+            self._first_pose = tuple(pose)
+        p0 = self._first_pose
+        moved = math.hypot(pose[0] - p0[0], pose[1] - p0[1]) > 0.5 * max(geometry.range_resolution, 1e-9)
+        turned = abs(math.remainder(pose[2] - p0[2], 2 * math.pi)) > 0.5 * geometry.angle_increment
+        if moved or turned:
+            self.moving = True
+            self.polar.reset()
+            return 'world'
+        return 'sensor'
+
+    def _grid(self, geometry: SectorGeometry) -> GridBackground:
+        if self.grid is None:
+            g = geometry
+            mid = 0.5 * (g.range_min + g.range_max)
+            cell = self.config.world_cell or max(g.range_resolution, mid * g.angle_increment, 1e-3)
+            self.grid = GridBackground(self.config, cell)
+        return self.grid
+
+    def update(self, echo: np.ndarray, geometry: SectorGeometry, pose: tuple[float, float, float], t: float) -> None:
+        """One look at a sector taken at ``pose`` (world frame); ``echo`` marks cells that echoed."""
+        if self._mode(geometry, pose) == 'sensor':
+            self.polar.update(echo, geometry, t)
+            return
+        per = max(1, _CHUNK // geometry.n_bins)
+
+        def chunks():
+            for j0 in range(0, geometry.n_beams, per):
+                rows, beams = np.indices((geometry.n_bins, min(per, geometry.n_beams - j0)))
+                beams = beams + j0
+                x, y = _sector_points(geometry, pose, rows.ravel(), beams.ravel())
+                yield x, y, echo[:, j0:j0 + per].ravel()
+        reach = geometry.range_max + geometry.range_resolution
+        self._grid(geometry).update(chunks(), (pose[0], pose[1]), reach, t)
+
+    def persistent(self, rows: np.ndarray, beams: np.ndarray, geometry: SectorGeometry,
+                   pose: tuple[float, float, float], t: float) -> np.ndarray:
+        """Whether sector cells ``(rows, beams)`` lie on persistent map cells (decided before this
+        look's :meth:`update`)."""
+        if self._mode(geometry, pose) == 'sensor':
+            return self.polar.persistent(rows, beams, geometry, t)
+        if self.grid is None:
+            return np.zeros(np.shape(rows), bool)
+        x, y = _sector_points(geometry, pose, rows, beams)
+        return self.grid.persistent(x, y, t)
