@@ -87,9 +87,12 @@ class StructureConfig(Config):
                             unit='s', low=0.0, high=1e6)
     veto_fraction: float = setting(0.5, 'an echo is vetoed when at least this fraction of its cells lie on '
                                    'persistent map cells', low=0.0, low_open=True, high=1.0)
-    map: str = setting('auto', "where the background is learnt: 'sensor' (polar cells of a static sonar), 'world' "
-                       "(a grid in the world frame that follows a moving sonar) or 'auto' (sensor until the pose "
-                       'changes). The FLS pipeline always learns on its image grid', choices=('auto', 'sensor', 'world'))
+    margin: int = setting(1, 'a cell within this many map cells of a persistent cell counts as persistent (the '
+                          'flickering edges of structure)', low=0, high=5)
+    map: str = setting('auto', "where the background is learnt: 'sensor' (polar cells of the sensor: ringdown, "
+                       "seabed bands, and all structure of a static sonar), 'world' (a grid in the world frame that "
+                       "follows a moving sonar: walls, piles) or 'auto' (sensor, and world too once the pose "
+                       'changes). The FLS pipeline learns on its image grid', choices=('auto', 'sensor', 'world'))
     world_cell: float = setting(0.0, 'cell size of the world-frame map; 0 = the sensor cell at mid range (detector) '
                                 'or the image pixel (FLS)', unit='m', low=0.0, high=1e4)
     max_map_cells: int = setting(1_000_000, 'memory bound of the background map (24 bytes a cell); a bigger '
@@ -270,11 +273,19 @@ class PolarBackground:
         rows, beams = np.asarray(rows, np.intp), np.asarray(beams, np.intp)
         if not self._matches(geometry) or rows.size == 0:
             return np.zeros(rows.shape, bool)
-        cols = self._columns(geometry, allocate=False)[beams]
+        all_cols = self._columns(geometry, allocate=False)
         out = np.zeros(rows.shape, bool)
-        ok = cols >= 0
-        c, r = cols[ok], rows[ok]
-        out[ok] = _persistent(self._s[r, c], self._w[r, c], t - self._t_first[c], t - self._t_last[c], self.config)
+        m = self.config.margin
+        for dr in range(-m, m + 1):
+            for db in range(-m, m + 1):
+                rr = rows + dr
+                bb = beams + db
+                inside = (rr >= 0) & (rr < geometry.n_bins) & (bb >= 0) & (bb < geometry.n_beams)
+                cols = np.where(inside, all_cols[np.clip(bb, 0, geometry.n_beams - 1)], -1)
+                ok = np.flatnonzero(cols >= 0)
+                c, r = cols[ok], rr[ok]
+                out[ok] |= _persistent(self._s[r, c], self._w[r, c], t - self._t_first[c], t - self._t_last[c],
+                                       self.config)
         return out
 
     def persistent_mask(self, geometry: SectorGeometry, t: float) -> np.ndarray:
@@ -332,10 +343,10 @@ class GridBackground:
         self._s, self._w, self._t_last, self._t_first = new['s'], new['w'], new['t_last'], new['t_first']
         self._i0, self._j0, self._n = i0, j0, n
 
-    def _index(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        """Flat window index of world points, -1 outside the window."""
-        i = np.floor(np.asarray(x) / self.cell).astype(np.int64) - self._i0
-        j = np.floor(np.asarray(y) / self.cell).astype(np.int64) - self._j0
+    def _index(self, x: np.ndarray, y: np.ndarray, di: int = 0, dj: int = 0) -> np.ndarray:
+        """Flat window index of the cell ``(di, dj)`` cells from each world point's, -1 outside."""
+        i = np.floor(np.asarray(x) / self.cell).astype(np.int64) - self._i0 + di
+        j = np.floor(np.asarray(y) / self.cell).astype(np.int64) - self._j0 + dj
         ok = (i >= 0) & (i < self._n) & (j >= 0) & (j < self._n)
         return np.where(ok, i * self._n + j, -1)
 
@@ -368,10 +379,14 @@ class GridBackground:
         out = np.zeros(x.shape, bool)
         if self._n == 0 or x.size == 0:
             return out
-        idx = self._index(x, y)
-        ok = idx >= 0
-        c = idx[ok]
-        out[ok] = _persistent(self._s[c], self._w[c], t - self._t_first[c], t - self._t_last[c], self.config)
+        m = self.config.margin
+        for di in range(-m, m + 1):
+            for dj in range(-m, m + 1):
+                idx = self._index(x, y, di, dj)
+                ok = np.flatnonzero(idx >= 0)
+                c = idx[ok]
+                out[ok] |= _persistent(self._s[c], self._w[c], t - self._t_first[c], t - self._t_last[c],
+                                       self.config)
         return out
 
 
@@ -384,8 +399,8 @@ def _sector_points(geometry: SectorGeometry, pose: tuple[float, float, float], r
 
 
 class SectorBackground:
-    """The persistent-echo background of a sector sonar: the polar map while the sonar stays put,
-    the world grid when it moves (``map`` setting, see module docstring)."""
+    """The persistent-echo background of a sector sonar: the sensor-frame polar map, and the
+    world-frame grid once the sonar moves (``map`` setting, see module docstring)."""
 
     def __init__(self, config: StructureConfig) -> None:
         self.config = config
@@ -398,21 +413,21 @@ class SectorBackground:
         self.polar.reset()
         self.grid = None
         self._first_pose: tuple[float, float, float] | None = None
-        self.moving = self.config.map == 'world'
+        self.moving = False
 
-    def _mode(self, geometry: SectorGeometry, pose: tuple[float, float, float]) -> str:
-        if self.config.map != 'auto' or self.moving:
-            return 'world' if self.config.map == 'world' or self.moving else 'sensor'
-        if self._first_pose is None:
-            self._first_pose = tuple(pose)
-        p0 = self._first_pose
-        moved = math.hypot(pose[0] - p0[0], pose[1] - p0[1]) > 0.5 * max(geometry.range_resolution, 1e-9)
-        turned = abs(math.remainder(pose[2] - p0[2], 2 * math.pi)) > 0.5 * geometry.angle_increment
-        if moved or turned:
-            self.moving = True
-            self.polar.reset()
-            return 'world'
-        return 'sensor'
+    def _maps(self, geometry: SectorGeometry, pose: tuple[float, float, float]) -> tuple[bool, bool]:
+        """Which maps are in use: (sensor, world)."""
+        mode = self.config.map
+        if mode != 'auto':
+            return mode == 'sensor', mode == 'world'
+        if not self.moving:
+            if self._first_pose is None:
+                self._first_pose = tuple(pose)
+            p0 = self._first_pose
+            moved = math.hypot(pose[0] - p0[0], pose[1] - p0[1]) > 0.5 * max(geometry.range_resolution, 1e-9)
+            turned = abs(math.remainder(pose[2] - p0[2], 2 * math.pi)) > 0.5 * geometry.angle_increment
+            self.moving = moved or turned
+        return True, self.moving
 
     def _grid(self, geometry: SectorGeometry) -> GridBackground:
         if self.grid is None:
@@ -424,27 +439,28 @@ class SectorBackground:
 
     def update(self, echo: np.ndarray, geometry: SectorGeometry, pose: tuple[float, float, float], t: float) -> None:
         """One look at a sector taken at ``pose`` (world frame); ``echo`` marks cells that echoed."""
-        if self._mode(geometry, pose) == 'sensor':
+        sensor, world = self._maps(geometry, pose)
+        if sensor:
             self.polar.update(echo, geometry, t)
+        if not world:
             return
         per = max(1, _CHUNK // geometry.n_bins)
 
         def chunks():
             for j0 in range(0, geometry.n_beams, per):
                 rows, beams = np.indices((geometry.n_bins, min(per, geometry.n_beams - j0)))
-                beams = beams + j0
-                x, y = _sector_points(geometry, pose, rows.ravel(), beams.ravel())
+                x, y = _sector_points(geometry, pose, rows.ravel(), beams.ravel() + j0)
                 yield x, y, echo[:, j0:j0 + per].ravel()
         reach = geometry.range_max + geometry.range_resolution
         self._grid(geometry).update(chunks(), (pose[0], pose[1]), reach, t)
 
     def persistent(self, rows: np.ndarray, beams: np.ndarray, geometry: SectorGeometry,
                    pose: tuple[float, float, float], t: float) -> np.ndarray:
-        """Whether sector cells ``(rows, beams)`` lie on persistent map cells (decided before this
-        look's :meth:`update`)."""
-        if self._mode(geometry, pose) == 'sensor':
-            return self.polar.persistent(rows, beams, geometry, t)
-        if self.grid is None:
-            return np.zeros(np.shape(rows), bool)
-        x, y = _sector_points(geometry, pose, rows, beams)
-        return self.grid.persistent(x, y, t)
+        """Whether sector cells ``(rows, beams)`` lie on persistent cells of either map (decided
+        before this look's :meth:`update`)."""
+        sensor, world = self._maps(geometry, pose)
+        out = self.polar.persistent(rows, beams, geometry, t) if sensor else np.zeros(np.shape(rows), bool)
+        if world and self.grid is not None:
+            x, y = _sector_points(geometry, pose, rows, beams)
+            out |= self.grid.persistent(x, y, t)
+        return out
