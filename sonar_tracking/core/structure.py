@@ -95,8 +95,9 @@ class StructureConfig(Config):
                        'changes). The FLS pipeline learns on its image grid', choices=('auto', 'sensor', 'world'))
     world_cell: float = setting(0.0, 'cell size of the world-frame map; 0 = the sensor cell at mid range (detector) '
                                 'or the image pixel (FLS)', unit='m', low=0.0, high=1e4)
-    max_map_cells: int = setting(1_000_000, 'memory bound of the background map (24 bytes a cell); a bigger '
-                                 'world window gets coarser cells', low=1000, high=50_000_000, read_only=True)
+    max_map_cells: int = setting(2_000_000, 'memory bound of each background map (sensor map 8 bytes a cell, world '
+                                 'map 24); a sonar with more cells gets coarser map cells', low=1000,
+                                 high=50_000_000, read_only=True)
     max_length: float = setting(0.0, 'echoes longer than this are structure; 0 = no limit', unit='m',
                                 low=0.0, high=1e5)
     max_width: float = setting(0.0, 'echoes whose narrow side is wider than this are structure; 0 = no limit',
@@ -201,8 +202,10 @@ class PolarBackground:
     """Echo frequency per sensor-frame polar cell: range bin x beam bearing (a static sonar).
 
     Beams are kept by bearing on a ring of one turn, so a scanning head's sectors fall on the same
-    cells every sweep; only bearings that were looked at take memory. A change of range bins or beam
-    step starts a new map.
+    cells every sweep; only bearings that were looked at take memory. A map cell is ``bins_per_cell``
+    range bins: 1 unless the bearings the sonar covers (one turn for a scanning head, its sector
+    for one that forms all beams at once) times the range bins exceed ``max_map_cells``. A change of
+    range bins or beam step starts a new map.
     """
 
     def __init__(self, config: StructureConfig) -> None:
@@ -213,14 +216,18 @@ class PolarBackground:
         """Forget everything."""
         self._key: tuple | None = None
         self.columns = 0
+        self.bins_per_cell = 1
 
     def _start(self, g: SectorGeometry) -> None:
         self._key = (g.angle_increment, g.n_bins, g.range_min, g.range_max)
         self._ring = max(1, int(round(2.0 * math.pi / g.angle_increment)))
+        beams = self._ring if g.ping_period != 0.0 else min(self._ring, g.n_beams)
+        self.bins_per_cell = max(1, math.ceil(g.n_bins * beams / self.config.max_map_cells))
+        self._rows = math.ceil(g.n_bins / self.bins_per_cell)
         self._ref = g.angle_min
         self._col = np.full(self._ring, -1, np.int64)    # ring slot -> column of the arrays below
-        self._s = np.zeros((g.n_bins, 0), np.float32)
-        self._w = np.zeros((g.n_bins, 0), np.float32)
+        self._s = np.zeros((self._rows, 0), np.float32)
+        self._w = np.zeros((self._rows, 0), np.float32)
         self._t_last = np.zeros(0)
         self._t_first = np.zeros(0)
         self.columns = 0
@@ -229,59 +236,64 @@ class PolarBackground:
         key = (g.angle_increment, g.n_bins, g.range_min, g.range_max)
         return self._key is not None and np.allclose(key, self._key, rtol=1e-9, atol=1e-12)
 
-    def _columns(self, g: SectorGeometry, allocate: bool) -> np.ndarray:
-        slots = np.rint((g.bearings() - self._ref) / g.angle_increment).astype(np.int64) % self._ring
-        cols = self._col[slots]
-        if allocate and (cols < 0).any():
-            new = np.unique(slots[cols < 0])
-            room = self.config.max_map_cells // max(1, g.n_bins) - self.columns
-            new = new[:max(0, room)]
-            if new.size:
-                cap = self._s.shape[1]
-                if self.columns + new.size > cap:  # grow geometrically: amortised O(1) per column
-                    grow = max(self.columns + new.size, 2 * cap)
-                    self._s = np.concatenate([self._s, np.zeros((g.n_bins, grow - cap), np.float32)], axis=1)
-                    self._w = np.concatenate([self._w, np.zeros((g.n_bins, grow - cap), np.float32)], axis=1)
-                    self._t_last = np.concatenate([self._t_last, np.zeros(grow - cap)])
-                    self._t_first = np.concatenate([self._t_first, np.full(grow - cap, np.nan)])
-                self._col[new] = self.columns + np.arange(new.size)
-                self._t_first[self.columns:self.columns + new.size] = np.nan
-                self.columns += new.size
-                cols = self._col[slots]
-        return cols
+    def _slots(self, g: SectorGeometry) -> np.ndarray:
+        return np.rint((g.bearings() - self._ref) / g.angle_increment).astype(np.int64) % self._ring
+
+    def _allocate(self, slots: np.ndarray) -> None:
+        budget = self.config.max_map_cells // self._rows   # columns
+        new = np.unique(slots[self._col[slots] < 0])
+        new = new[:max(0, budget - self.columns)]
+        if new.size == 0:
+            return
+        cap = self._s.shape[1]
+        if self.columns + new.size > cap:  # grow geometrically (amortised O(1) a column), within budget
+            more = min(max(self.columns + new.size, 2 * cap), budget) - cap
+            self._s = np.concatenate([self._s, np.zeros((self._rows, more), np.float32)], axis=1)
+            self._w = np.concatenate([self._w, np.zeros((self._rows, more), np.float32)], axis=1)
+            self._t_last = np.concatenate([self._t_last, np.zeros(more)])
+            self._t_first = np.concatenate([self._t_first, np.full(more, np.nan)])
+        self._col[new] = self.columns + np.arange(new.size)
+        self.columns += new.size
 
     def update(self, echo: np.ndarray, geometry: SectorGeometry, t: float) -> None:
         """One look at every cell of a sector: ``echo`` (bins x beams, bool) marks cells that echoed."""
         if not self._matches(geometry):
             self._start(geometry)
-        cols = self._columns(geometry, allocate=True)
+        slots = self._slots(geometry)
+        self._allocate(slots)
+        cols = self._col[slots]
         ok = np.flatnonzero(cols >= 0)
         if ok.size == 0:
             return
+        k = self.bins_per_cell
+        if k > 1:  # a map cell echoed if any of its bins did
+            pad = self._rows * k - geometry.n_bins
+            echo = np.pad(echo, ((0, pad), (0, 0))).reshape(self._rows, k, -1).any(axis=1)
         c = cols[ok]
         T = self.config.time_constant
         dt = np.maximum(t - self._t_last[c], 0.0)
         fresh = np.isnan(self._t_first[c]) | (dt > _FORGET * T)
-        k = np.where(fresh, 0.0, np.exp(-dt / T)).astype(np.float32)
-        self._s[:, c] = self._s[:, c] * k + echo[:, ok]
-        self._w[:, c] = self._w[:, c] * k + 1.0
+        decay = np.where(fresh, 0.0, np.exp(-dt / T)).astype(np.float32)
+        self._s[:, c] = self._s[:, c] * decay + echo[:, ok]
+        self._w[:, c] = self._w[:, c] * decay + 1.0
         self._t_first[c] = np.where(fresh, t, self._t_first[c])
         self._t_last[c] = t
 
     def persistent(self, rows: np.ndarray, beams: np.ndarray, geometry: SectorGeometry, t: float) -> np.ndarray:
-        """Whether cells ``(rows, beams)`` of a sector with ``geometry`` lie on persistent map cells."""
+        """Whether cells ``(rows, beams)`` of a sector with ``geometry`` lie on (or within ``margin``
+        map cells of) persistent map cells."""
         rows, beams = np.asarray(rows, np.intp), np.asarray(beams, np.intp)
-        if not self._matches(geometry) or rows.size == 0:
-            return np.zeros(rows.shape, bool)
-        all_cols = self._columns(geometry, allocate=False)
         out = np.zeros(rows.shape, bool)
+        if not self._matches(geometry) or rows.size == 0:
+            return out
+        map_rows = rows // self.bins_per_cell
+        slots = self._slots(geometry)[beams]
         m = self.config.margin
         for dr in range(-m, m + 1):
+            rr = map_rows + dr
+            inside = (rr >= 0) & (rr < self._rows)
             for db in range(-m, m + 1):
-                rr = rows + dr
-                bb = beams + db
-                inside = (rr >= 0) & (rr < geometry.n_bins) & (bb >= 0) & (bb < geometry.n_beams)
-                cols = np.where(inside, all_cols[np.clip(bb, 0, geometry.n_beams - 1)], -1)
+                cols = np.where(inside, self._col[(slots + db) % self._ring], -1)
                 ok = np.flatnonzero(cols >= 0)
                 c, r = cols[ok], rr[ok]
                 out[ok] |= _persistent(self._s[r, c], self._w[r, c], t - self._t_first[c], t - self._t_last[c],

@@ -154,3 +154,16 @@ def test_sector_background_adds_the_world_map_once_the_sonar_moves():
     static = SectorBackground(StructureConfig(map='sensor'))
     static.update(echo, GEOM, (5.0, 0.0, 0.0), 0.0)
     assert static.grid is None
+
+
+def test_polar_map_coarsens_range_to_its_memory_bound():
+    g = SectorGeometry(angle_min=-0.5, angle_increment=0.01, n_beams=101, range_min=1.0, range_max=100.0,
+                       n_bins=1000)
+    bg = PolarBackground(StructureConfig(warmup=0.0, margin=0, max_map_cells=30_000))
+    echo = np.zeros(g.shape, bool)
+    echo[501, 40] = True
+    for t in range(5):
+        bg.update(echo, g, float(t))
+    assert bg.bins_per_cell == 4 and bg.columns == 101 and bg._s.size <= 30_000
+    mask = bg.persistent_mask(g, 5.0)
+    assert mask[500:504, 40].all() and mask.sum() == 4   # the map cell of bins 500-503

@@ -89,17 +89,23 @@ def label_cells(mask: np.ndarray, merge_bins: int, merge_beams: int) -> tuple[np
 
 
 def threshold_cells(amplitudes: np.ndarray, tau: float, merge_bins: int = 1, merge_beams: int = 1,
-                    connected: bool = False) -> CellDetections:
+                    connected: bool = False, echoes: bool = True) -> CellDetections:
     """Cells with amplitude ``> tau`` (ESC eq. 16's event), grouped as the module docstring says.
 
-    ``connected`` selects the ``connected`` grouping. Callers validate amplitudes first (finite).
+    ``connected`` selects the ``connected`` grouping; ``echoes = False`` skips labelling the
+    connected echoes where nobody needs them (``cell_echo`` is then all 0, ``n_echoes`` 0).
+    Callers validate amplitudes first (finite).
     """
     a = np.asarray(amplitudes)
     above = a > tau
-    echo_labels, n_echo = label_cells(above, max(merge_bins, 2), max(merge_beams, 2))
     rows, cols = np.nonzero(above)
-    echo = echo_labels[rows, cols] - 1
     amp = a[rows, cols]
+    if echoes or connected:
+        echo_labels, n_echo = label_cells(above, max(merge_bins, 2), max(merge_beams, 2))
+        echo = echo_labels[rows, cols] - 1
+        del echo_labels
+    else:
+        echo, n_echo = np.zeros(len(rows), np.int64), 0
     if connected:
         group, n = echo, n_echo
     elif merge_bins <= 1 and merge_beams <= 1:

@@ -244,7 +244,7 @@ class ActiveDetector:
         t = self._time(stamp, geometry)
         tau = self.threshold
         cells = threshold_cells(a, tau, cfg.cells.merge_bins, cfg.cells.merge_beams,
-                                cfg.cells.grouping == 'connected')
+                                cfg.cells.grouping == 'connected', echoes=cfg.structure.enabled)
         found = len(cells)
         keep = np.arange(found)
         if cfg.structure.enabled:
