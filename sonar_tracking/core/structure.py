@@ -373,6 +373,26 @@ class GridBackground:
             ok = idx >= 0
             seen[idx[ok]] = True
             hit[idx[ok & np.asarray(echo, bool)]] = True
+        self._look(seen, hit, t)
+
+    def update_raster(self, xs: np.ndarray, ys: np.ndarray, seen: np.ndarray, echo: np.ndarray,
+                      sensor_xy: tuple[float, float], reach: float, t: float) -> None:
+        """One look at an axis-aligned raster: pixel ``[j, i]`` is at ``(xs[i], ys[j])``; ``seen`` and
+        ``echo`` (bool, ``(len(ys), len(xs))``) mark the pixels looked at and those that echoed."""
+        self._follow(sensor_xy[0], sensor_xy[1], reach)
+        i = np.floor(np.asarray(xs) / self.cell).astype(np.int64) - self._i0
+        j = np.floor(np.asarray(ys) / self.cell).astype(np.int64) - self._j0
+        ci, cj = (i >= 0) & (i < self._n), (j >= 0) & (j < self._n)
+        idx = i[None, ci] * self._n + j[cj, None]
+        sub = np.ix_(cj, ci)
+        seen_map = np.zeros(self._n * self._n, bool)
+        hit = np.zeros(self._n * self._n, bool)
+        seen_map[idx[seen[sub]]] = True
+        hit[idx[echo[sub] & seen[sub]]] = True
+        self._look(seen_map, hit, t)
+
+    def _look(self, seen: np.ndarray, hit: np.ndarray, t: float) -> None:
+        """The echo-frequency rule on the cells ``seen`` (flat bool), echo where ``hit``."""
         c = np.flatnonzero(seen)
         if c.size == 0:
             return

@@ -281,14 +281,13 @@ class FlsProcessor:
     def _learn(self, image: np.ndarray, raw: np.ndarray, grid: ImageGrid, t: float) -> None:
         """One look of the background at every painted pixel; echo where above the growth level."""
         level = np.float32(10.0 ** (self.config.segment.grow_db / 10.0))
-        per = max(1, (1 << 18) // grid.width)
-
-        def chunks():
-            for r0 in range(0, grid.height, per):
-                block = raw[r0:r0 + per]
-                rows, cols = np.nonzero(np.isfinite(block))
-                x, y = grid.pixel_to_point(rows + r0, cols)
-                yield x, y, image[rows + r0, cols] > level
         g = self._geometry
         reach = g.range_max + g.range_resolution + grid.resolution
-        self.background.update(chunks(), self._pose[:2], reach, t)
+        if grid.origin_yaw == 0.0:  # the builder's images: x along columns, y along rows
+            xs, _ = grid.pixel_to_point(np.zeros(grid.width), np.arange(grid.width))
+            _, ys = grid.pixel_to_point(np.arange(grid.height), np.zeros(grid.height))
+            self.background.update_raster(xs, ys, np.isfinite(raw), image > level, self._pose[:2], reach, t)
+        else:
+            rows, cols = np.nonzero(np.isfinite(raw))
+            x, y = grid.pixel_to_point(rows, cols)
+            self.background.update([(x, y, image[rows, cols] > level)], self._pose[:2], reach, t)
