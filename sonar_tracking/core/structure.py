@@ -15,23 +15,30 @@ keeps a discounted frequency of echo over its looks::
 
 ``z = 1`` when the cell echoed in this look (detector: a cell above the current threshold; FLS: a
 pixel above the region growth level ``segment.grow_db``), ``dt`` the time since the cell's
-previous look and ``T = time_constant``. Until ``T`` has passed ``p`` is close to the plain
-fraction of looks with echo; after that it is an exponential average over about ``T`` seconds (the
+previous look and ``T = time_constant``. Until ``T`` has passed ``p`` is the plain fraction of
+looks with echo; after that it is an exponential average over about ``T`` seconds (the
 discounting is in time, so a sonar that looks at a cell every 0.1 s and one that looks every 5 s
-forget at the same rate). A cell is *persistent* when ``p >= persistence`` and it has been watched
-for at least ``warmup`` seconds; a cell not looked at for ``3 T`` starts afresh. An echo with at
-least ``veto_fraction`` of its cells on persistent map cells is vetoed. The map learns from every
-above-level cell, vetoed or not, after the veto decision for the look.
+forget at the same rate). ``e = p min(age, T)`` is then the time the cell has echoed within that
+window (``age`` = time since its first look). A cell is *persistent* when it echoed in at least
+a fraction ``persistence`` of its looks **and** for at least ``min_echo_time`` seconds in all::
+
+    p >= persistence    and    p min(age, T) >= min_echo_time
+
+A cell not looked at for ``3 T`` starts afresh, and a cell within ``margin`` map cells of a
+persistent one counts as persistent too (the flickering edges and broken ends of structure). An
+echo with at least ``veto_fraction`` of its cells on persistent cells is vetoed. The map learns
+from every above-level cell, vetoed or not, after the veto decision for the look.
 
 Which moving targets are safe: a target whose echo is ``L`` long along its track, moving at ``v``,
-keeps a map cell of size ``c`` echoing for ``d = (L + c) / v`` seconds. That cell's ``p`` then
-reaches at most ``d / min(age, T)`` (``age >= warmup`` before any veto), so the target is never
-learnt while ``d < persistence * min(warmup, T)``. With the defaults (``T = 60 s``, ``warmup =
-15 s``, ``persistence = 0.5``) that is ``d < 7.5 s``: an echo 2 m long with its cell is safe at
-0.27 m/s and faster, a 0.5 m/s target up to 3.75 m, a 1 m/s target up to 7.5 m. A target that stops
-is learnt after about ``T ln(1 / (1 - persistence)) = 42 s`` and then vetoed: the price of any
-clutter map, and the reason ``T`` is a setting. During the first ``warmup`` seconds nothing is
-vetoed by this rule; the shape gates below work from the first look.
+keeps a map cell of size ``c`` echoing for ``d = (L + c) / v`` seconds, so that cell's echo time is
+at most ``d``: a target is never learnt while ``d < min_echo_time``, i.e. while it moves faster than
+``(L + c) / min_echo_time``. With the default 7.5 s: an echo 2 m long with its cell is safe from
+0.27 m/s, a target at 0.5 m/s with ``L + c`` up to 3.75 m, at 1 m/s up to 7.5 m. Static structure
+that echoes in every look is vetoed ``min_echo_time`` after it is first seen; structure echoing in
+a fraction ``q >= persistence`` of looks after ``min_echo_time / q``. A target that stops is
+learnt after about ``T ln(1 / (1 - persistence)) = 42 s`` (defaults) and then vetoed: the price of
+any clutter map, and the reason ``T`` is a setting. Until then the shape gates below are the
+only rule, and they work from the first look.
 
 Where the map lives (``map``): ``sensor`` keeps one cell per range bin and beam bearing of the
 sensor (the polar resolution cells of a static sonar: exact, and fine near the sonar where a
@@ -82,9 +89,9 @@ class StructureConfig(Config):
                                    'over about this long', unit='s', low=1.0, high=1e6)
     persistence: float = setting(0.5, 'a map cell that echoed in at least this fraction of its recent looks is '
                                  'static structure; 1 = switch the persistence veto off', low=0.05, high=1.0)
-    warmup: float = setting(15.0, 'a map cell is judged only after it has been watched this long; moving '
-                            'targets are safe while (echo length + cell) / speed < persistence * warmup',
-                            unit='s', low=0.0, high=1e6)
+    min_echo_time: float = setting(7.5, 'a map cell is persistent only after echoing this long in all; moving '
+                                   'targets are safe while (echo length + cell) / speed is shorter', unit='s',
+                                   low=0.0, high=1e6)
     veto_fraction: float = setting(0.5, 'an echo is vetoed when at least this fraction of its cells lie on '
                                    'persistent map cells', low=0.0, low_open=True, high=1.0)
     margin: int = setting(1, 'a cell within this many map cells of a persistent cell counts as persistent (the '
@@ -195,7 +202,9 @@ def vetoed_groups(labels: np.ndarray, n: int, on_persistent: np.ndarray, veto_fr
 def _persistent(s: np.ndarray, w: np.ndarray, age: np.ndarray, idle: np.ndarray, config: StructureConfig) -> np.ndarray:
     """The persistence test on map cells (module docstring, rule 1)."""
     c = config
-    return (w > 0) & (s >= c.persistence * w) & (age >= c.warmup) & (idle <= _FORGET * c.time_constant)
+    p = s / np.maximum(w, 1e-30)
+    return ((w > 0) & (p >= c.persistence) & (p * np.minimum(age, c.time_constant) >= c.min_echo_time)
+            & (idle <= _FORGET * c.time_constant))
 
 
 class PolarBackground:

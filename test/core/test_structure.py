@@ -11,7 +11,7 @@ from sonar_tracking.core.sector import SectorGeometry
 from sonar_tracking.core.structure import (GridBackground, PolarBackground, SectorBackground, StructureConfig,
                                            echo_shapes, is_structure_shape, vetoed_groups)
 
-CFG = StructureConfig(enabled=True, time_constant=60.0, persistence=0.5, warmup=15.0, margin=0)
+CFG = StructureConfig(enabled=True, time_constant=60.0, persistence=0.5, min_echo_time=7.5, margin=0)
 
 
 def test_shapes_are_the_sides_of_the_rectangle_with_the_same_moments():
@@ -70,15 +70,22 @@ def looks(background, echo_of_t, times):
         background.update(echo_of_t(t), GEOM, t)
 
 
-def test_always_echoing_cell_is_persistent_after_warmup_only():
+def test_cell_is_persistent_after_echoing_min_echo_time_in_enough_looks():
     bg = PolarBackground(CFG)
     echo = np.zeros(GEOM.shape, bool)
     echo[5, 50] = True
-    looks(bg, lambda t: echo, np.arange(0.0, 14.0))
-    assert not bg.persistent(np.array([5]), np.array([50]), GEOM, 14.0)[0]  # watched 13 s < warmup
-    looks(bg, lambda t: echo, np.arange(14.0, 17.0))
-    mask = bg.persistent_mask(GEOM, 17.0)
+    looks(bg, lambda t: echo, np.arange(0.0, 7.0))
+    assert not bg.persistent(np.array([5]), np.array([50]), GEOM, 7.0)[0]  # echoed 6 s of its 6 s < 7.5 s
+    looks(bg, lambda t: echo, np.arange(7.0, 9.0))
+    mask = bg.persistent_mask(GEOM, 9.0)
     assert mask[5, 50] and mask.sum() == 1
+    # A cell echoing in two of every three looks: persistent once it echoed 7.5 s, near 7.5 / (2/3) s.
+    bg = PolarBackground(CFG)
+    state = []
+    for t in np.arange(0.0, 40.0):
+        state.append(bg.persistent(np.array([5]), np.array([50]), GEOM, t)[0])
+        bg.update(echo if t % 3 != 2 else np.zeros(GEOM.shape, bool), GEOM, t)
+    assert not any(state[:10]) and all(state[13:])
 
 
 def test_target_moving_through_cells_is_not_learnt_but_a_stopped_one_is():
@@ -117,7 +124,7 @@ def test_scanning_sectors_fall_on_the_same_cells_every_sweep():
 
 
 def test_margin_counts_neighbours_of_persistent_cells():
-    bg = PolarBackground(StructureConfig(warmup=0.0, margin=1))
+    bg = PolarBackground(StructureConfig(min_echo_time=0.0, margin=1))
     echo = np.zeros(GEOM.shape, bool)
     echo[5, 50] = True
     looks(bg, lambda t: echo, np.arange(0.0, 5.0))
@@ -144,7 +151,7 @@ def test_grid_coarsens_to_its_memory_bound():
 
 
 def test_sector_background_adds_the_world_map_once_the_sonar_moves():
-    bg = SectorBackground(StructureConfig(warmup=5.0, margin=0))
+    bg = SectorBackground(StructureConfig(min_echo_time=5.0, margin=0))
     echo = np.zeros(GEOM.shape, bool)
     for t in np.arange(0.0, 10.0):
         bg.update(echo, GEOM, (0.0, 0.0, 0.0), t)
@@ -159,7 +166,7 @@ def test_sector_background_adds_the_world_map_once_the_sonar_moves():
 def test_polar_map_coarsens_range_to_its_memory_bound():
     g = SectorGeometry(angle_min=-0.5, angle_increment=0.01, n_beams=101, range_min=1.0, range_max=100.0,
                        n_bins=1000)
-    bg = PolarBackground(StructureConfig(warmup=0.0, margin=0, max_map_cells=30_000))
+    bg = PolarBackground(StructureConfig(min_echo_time=0.0, margin=0, max_map_cells=30_000))
     echo = np.zeros(g.shape, bool)
     echo[501, 40] = True
     for t in range(5):

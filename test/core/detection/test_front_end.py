@@ -66,8 +66,9 @@ def test_static_wall_and_band_are_vetoed_and_moving_targets_kept(speed):
     wall0, band0, seen0 = run({'esc.enabled': False, 'cells.grouping': 'connected'}, scans, targets)
     wall, band, seen = run(STRUCTURE, scans, targets)
     assert wall0.mean() > 0.5 and band0.mean() > 8.0           # without rejection: detections on both
-    # Once warmed up (15 s) the persistent-echo background removes even the detached fragments of
-    # the wall's flickering edge and of the band, which the shape gates cannot judge.
+    # Once structure has echoed min_echo_time (7.5 s; the band, echoing in 61 % of scans, ~12 s) the
+    # persistent-echo background removes even the detached fragments of the wall's flickering edge
+    # and of the band, which the shape gates cannot judge.
     assert wall[16:].sum() == 0 and band[16:].sum() == 0
     assert seen.size > 40 and seen.mean() >= 0.95 and seen.mean() >= seen0.mean() - 0.02
 
@@ -92,8 +93,9 @@ def test_shape_gates_reject_wall_and_band_from_the_first_scan():
 
 
 def test_persistence_alone_vetoes_structure_in_the_papers_cell_mode():
-    """No shape gates, every cell its own detection (the ESC paper's cells): after the warm-up the
-    persistent-echo background alone removes wall and band, and the moving target stays."""
+    """No shape gates, every cell its own detection (the ESC paper's cells): once the structure has
+    echoed long enough the persistent-echo background alone removes wall and band, and the moving
+    target stays."""
     flat = {'esc.enabled': False, 'structure.enabled': True}
     target = ((12.0, -20.0, 0.0, 0.75),)
     wall0, band0, _ = run({'esc.enabled': False}, 40, target)
@@ -112,7 +114,7 @@ def test_moving_sonar_uses_both_maps():
     wall0, band0, _ = run({'esc.enabled': False, 'cells.grouping': 'connected'}, 60, target, speed=0.5)
     assert wall0[20:].mean() > 0.5 and band0[20:].mean() > 5
     wall, band, seen = results['auto']
-    # Wall cells coming into view as the sonar approaches need their own warm-up: a stray fragment
+    # Wall cells coming into view as the sonar approaches need their own echo time: a stray fragment
     # of the wall's end may pass (one in these 40 scans, against 0.9 a scan without rejection).
     assert wall[20:].sum() <= 2 and band[20:].sum() == 0 and seen.mean() >= 0.9
     assert results['sensor'][0][20:].mean() > 0.3 and results['sensor'][1][20:].sum() == 0
