@@ -40,15 +40,20 @@ learnt after about ``T ln(1 / (1 - persistence)) = 42 s`` (defaults) and then ve
 any clutter map, and the reason ``T`` is a setting. Until then the shape gates below are the
 only rule, and they work from the first look.
 
-Where the map lives (``map``): ``sensor`` keeps one cell per range bin and beam bearing of the
-sensor (the polar resolution cells of a static sonar: exact, and fine near the sonar where a
-Cartesian grid would be coarse); ``world`` a square grid of ``world_cell`` metres in the world
-frame, in a window of ``2 range_max`` around the sonar that follows it (whole cells, history kept
-where windows overlap), for a moving sonar placed by odometry; ``auto`` uses the sensor map while
-the pose stays where it was first given and switches to the world map (learning again) once it
-moves by half a range bin or half a beam step. The FLS pipeline learns in its image frame with the
-world map (its image is in the sensor frame for a static sonar and the world frame for a moving
-one), once per completed sweep, so each pixel is one look per sweep.
+Where the map lives (``map``). The *sensor* map keeps one cell per range bin and beam bearing
+(the polar resolution cells: exact for a static sonar, fine near the sonar where a Cartesian grid
+would be coarse; beams kept by bearing over one turn, so a scanning head's sweeps fall on the same
+cells). It learns what is static in the sensor frame: everything, for a static sonar, and for a
+moving one the seabed band (the bottom at the range where the beams reach it) and ringdown. The
+*world* map is a square grid of ``world_cell`` metres in the world frame, in a window of
+``2 range_max`` around the sonar that follows it (whole cells; history kept where windows overlap),
+and learns what is static in the world when the sonar moves (walls, piles, a moored hull).
+``auto`` keeps the sensor map always and adds the world map once the pose moves by half a range
+bin or half a beam step from where it was first given; a cell is persistent if it is in either
+map. ``sensor`` or ``world`` use one map only. Each map is held to ``max_map_cells`` by coarser
+cells (range bins joined in the sensor map, a larger ``world_cell``). The FLS pipeline learns on
+a grid in its image frame (the sensor frame for a static sonar, the world frame for a moving one),
+once per completed sweep, so each pixel is one look per sweep.
 
 **2. Shape gates in metres** (``max_length``, ``max_width``, ``max_area``, ``elongated_length``,
 ``max_aspect``). An echo's length and width are ``sqrt(12 lambda)`` of the eigenvalues ``lambda`` of
@@ -58,7 +63,9 @@ footprint. Its area is the sum of its cells' footprints. An echo is structure wh
 than ``max_length``, wider (its narrow side) than ``max_width`` or larger than ``max_area``, or when
 it is elongated: at least ``elongated_length`` long and ``max_aspect`` times longer than wide (a
 wall face, a seabed band, a pile row). Targets of the papers are 0.3-3 m, so e.g. 6 m, 3 m, 10 m^2,
-3 m at aspect 4 separate them from walls and bands. 0 switches a gate off.
+3 m at aspect 4 separate them from walls and bands. 0 switches a gate off. A target touching
+structure is one connected echo with it and is dropped with it (a clutter map masks what is on
+it); the measured behaviour and the choices are in ``docs/structure_rejection.md``.
 
 Everything is off by default (``enabled``), so both pipelines reproduce the papers unless asked.
 """

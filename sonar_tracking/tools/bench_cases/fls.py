@@ -65,4 +65,5 @@ register(Case(name='fls.frame_400_structure', group='fls', repeats=30, compare_t
               make=lambda: _frame(400, {'structure.enabled': True, 'structure.max_length': 6.0,
                                         'structure.elongated_length': 3.0}),
               description='fls.frame_400 with static-structure rejection: shape gates, persistent-echo '
-                          'veto and learning on the 400 x 400 image'))
+                          'veto and learning on the 400 x 400 image (its 20 targets are static, so they '
+                          'become structure and no features are computed)'))
