@@ -214,6 +214,16 @@ def _persistent(s: np.ndarray, w: np.ndarray, age: np.ndarray, idle: np.ndarray,
             & (idle <= _FORGET * c.time_constant))
 
 
+def _decay(t_last: np.ndarray, t_first: np.ndarray, c: np.ndarray, t: float, time_constant: float) -> np.ndarray:
+    """The factor ``exp(-dt / T)`` that ``S`` and ``W`` of the cells (or columns) ``c`` keep at a look at
+    time ``t`` (0 for a first look, or one after ``3 T`` unseen); records the look's time."""
+    dt = np.maximum(t - t_last[c], 0.0)
+    fresh = np.isnan(t_first[c]) | (dt > _FORGET * time_constant)
+    t_first[c] = np.where(fresh, t, t_first[c])
+    t_last[c] = t
+    return np.where(fresh, 0.0, np.exp(-dt / time_constant)).astype(np.float32)
+
+
 class PolarBackground:
     """Echo frequency per sensor-frame polar cell: range bin x beam bearing (a static sonar).
 
@@ -286,14 +296,9 @@ class PolarBackground:
             pad = self._rows * k - geometry.n_bins
             echo = np.pad(echo, ((0, pad), (0, 0))).reshape(self._rows, k, -1).any(axis=1)
         c = cols[ok]
-        T = self.config.time_constant
-        dt = np.maximum(t - self._t_last[c], 0.0)
-        fresh = np.isnan(self._t_first[c]) | (dt > _FORGET * T)
-        decay = np.where(fresh, 0.0, np.exp(-dt / T)).astype(np.float32)
+        decay = _decay(self._t_last, self._t_first, c, t, self.config.time_constant)
         self._s[:, c] = self._s[:, c] * decay + echo[:, ok]
         self._w[:, c] = self._w[:, c] * decay + 1.0
-        self._t_first[c] = np.where(fresh, t, self._t_first[c])
-        self._t_last[c] = t
 
     def persistent(self, rows: np.ndarray, beams: np.ndarray, geometry: SectorGeometry, t: float) -> np.ndarray:
         """Whether cells ``(rows, beams)`` of a sector with ``geometry`` lie on (or within ``margin``
@@ -412,14 +417,9 @@ class GridBackground:
         c = np.flatnonzero(seen)
         if c.size == 0:
             return
-        T = self.config.time_constant
-        dt = np.maximum(t - self._t_last[c], 0.0)
-        fresh = np.isnan(self._t_first[c]) | (dt > _FORGET * T)
-        k = np.where(fresh, 0.0, np.exp(-dt / T)).astype(np.float32)
-        self._s[c] = self._s[c] * k + hit[c]
-        self._w[c] = self._w[c] * k + 1.0
-        self._t_first[c] = np.where(fresh, t, self._t_first[c])
-        self._t_last[c] = t
+        decay = _decay(self._t_last, self._t_first, c, t, self.config.time_constant)
+        self._s[c] = self._s[c] * decay + hit[c]
+        self._w[c] = self._w[c] * decay + 1.0
 
     def persistent(self, x: np.ndarray, y: np.ndarray, t: float) -> np.ndarray:
         """Whether world points lie on persistent map cells."""
