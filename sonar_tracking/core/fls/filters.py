@@ -15,9 +15,10 @@ how. Our design, each choice with its reason:
    range: the median over all buffered beams of the bin (robust to the few cells a target
    occupies), smoothed over ``background_bins`` bins, divided by ln 2 (the median of fully
    developed, exponential speckle of mean 1). Exact zeros are no data and stay out of the median
-   (real imaging sonars report most of a bin as 0 in open water); see :func:`background_level`. Intensity changes with range (spreading losses the
-   time-varying gain does not quite undo, receiver noise growing far out), so thresholds in
-   units of the local background keep one false-alarm rate at every range.
+   (real imaging sonars report most of a bin as 0 in open water); see :func:`background_level`.
+   Intensity changes with range (spreading losses the time-varying gain does not quite undo,
+   receiver noise growing far out), so thresholds in units of the local background keep one
+   false-alarm rate at every range.
 3. **A trimmed mean rather than the bare median.** The filter sorts each window, drops the
    ``trim`` largest and ``trim`` smallest samples and averages the rest: an alpha-trimmed mean,
    the order-statistic family whose ends are the box mean (``trim = 0``) and the median
