@@ -128,6 +128,9 @@ class StructureConfig(Config):
         if self.max_length and self.elongated_length >= self.max_length:
             raise ConfigError(f'elongated_length = {self.elongated_length} m would never act: echoes longer than '
                               f'max_length = {self.max_length} m are rejected already; make it shorter or 0')
+        if self.enabled and not self.shape_gates and not self.persistence_veto:
+            raise ConfigError('structure.enabled with persistence = 1 and every shape gate 0 rejects nothing; lower '
+                              'persistence or set max_length, max_width, max_area or elongated_length')
         if self.max_length and self.max_width and self.max_width >= self.max_length:
             raise ConfigError(f'max_width = {self.max_width} m would never act: an echo is never wider than long '
                               f'and max_length = {self.max_length} m; make it smaller or 0')

@@ -55,6 +55,7 @@ def test_veto_needs_the_fraction_of_cells_on_persistent_cells():
     ({'persistence': 0.0}, 'persistence'),
     ({'veto_fraction': 0.0}, 'veto_fraction'),
     ({'map': 'odometry'}, 'map'),
+    ({'enabled': True, 'persistence': 1.0}, 'rejects nothing'),
 ])
 def test_settings_that_cannot_work_are_refused(values, match):
     with pytest.raises(ConfigError, match=match):
