@@ -85,7 +85,9 @@ def label_cells(mask: np.ndarray, merge_bins: int, merge_beams: int) -> tuple[np
     if merge_bins > 1 and merge_beams > 1:
         structure[:] = True
     labels, n = ndimage.label(grown, structure=structure)
-    return np.where(mask, labels, 0).astype(np.int32, copy=False), int(n)
+    if grown is not mask:
+        labels[~mask] = 0
+    return labels, int(n)
 
 
 def threshold_cells(amplitudes: np.ndarray, tau: float, merge_bins: int = 1, merge_beams: int = 1,

@@ -262,8 +262,9 @@ class ActiveDetector:
         sigma_r = _extent_sigma(sigma_r, cells.span_rows[keep], dr)
         sigma_b = _extent_sigma(sigma_b, cells.span_cols[keep], geometry.angle_increment)
         xy, cov = convert_measurements(r, b, sigma_r, sigma_b, pose, cfg.cells.conversion == 'unbiased')
-        r_lo = max(0.0, geometry.range_min - dr / 2, cfg.intensity.blank_range)
-        window = PolarWindow(r_lo, geometry.range_max + dr / 2,
+        r_hi = geometry.range_max + dr / 2
+        r_lo = min(max(0.0, geometry.range_min - dr / 2, cfg.intensity.blank_range), r_hi)
+        window = PolarWindow(r_lo, r_hi,
                              geometry.angle_min - geometry.angle_increment / 2,
                              geometry.angle_max + geometry.angle_increment / 2)
         if cut:

@@ -170,3 +170,9 @@ def test_bad_sectors_are_refused_and_nothing_changes(bad, match):
     assert det.scans == 0 and det.background.polar.columns == 0
     with pytest.raises(DetectionInputError, match='stamp'):
         det.process(np.zeros(GEOM.shape, np.float32), GEOM, stamp=math.inf)
+
+
+def test_a_sector_blanked_entirely_gives_no_detections_and_esc_goes_on():
+    det = ActiveDetector(DetectorConfig.from_flat({'intensity.blank_range': 100.0}))
+    r = det.process(np.full(GEOM.shape, 50.0, np.float32), GEOM)
+    assert len(r.detections) == 0 and r.mean_density == 0.0 and r.next_threshold < r.threshold
