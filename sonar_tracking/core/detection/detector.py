@@ -50,7 +50,7 @@ import numpy as np
 from ..config import Config, ConfigError, setting
 from ..intensity import IntensityConfig, condition
 from ..records import DETECTION_DTYPE
-from ..sector import SectorGeometry
+from ..sector import GeometryError, SectorError, SectorGeometry, check_sector
 from ..structure import SectorBackground, StructureConfig, echo_shapes, is_structure_shape, vetoed_groups
 from .cells import CellDetections, threshold_cells
 from .conversion import convert_measurements
@@ -73,7 +73,8 @@ def _extent_sigma(sigma: float, span: np.ndarray, step: float) -> float | np.nda
 
 
 class DetectionInputError(ValueError):
-    """A sector cannot be processed (non-finite amplitudes, wrong shape); it should be dropped."""
+    """A sector cannot be processed (the sector rule of :func:`~sonar_tracking.core.sector.check_sector`:
+    wrong shape, not numbers, NaN, infinite or negative values); it should be dropped."""
 
 
 @dataclass(frozen=True)
@@ -228,16 +229,13 @@ class ActiveDetector:
         (1 s if 0) apart. Raises DetectionInputError for a sector that cannot be used (nothing
         changes then).
         """
-        raw = np.asarray(amplitudes)
-        if raw.shape != geometry.shape:
-            raise DetectionInputError(f'amplitudes have shape {raw.shape}, geometry says {geometry.shape}')
-        if raw.dtype.kind not in 'uif':
-            raise DetectionInputError(f'amplitudes have dtype {raw.dtype}; expected numbers')
-        if not np.isfinite(raw).all():
-            raise DetectionInputError(f'{int((~np.isfinite(raw)).sum())} amplitudes are NaN or infinite')
+        cfg = self.config
+        try:
+            raw = check_sector(amplitudes, geometry, cfg.intensity.coding)
+        except (SectorError, GeometryError) as exc:
+            raise DetectionInputError(str(exc)) from None
         if stamp is not None and not math.isfinite(stamp):
             raise DetectionInputError(f'stamp {stamp} is not finite')
-        cfg = self.config
         a, geometry = condition(raw, geometry, cfg.intensity)
         if raw.dtype.kind == 'f':
             a = a.astype(raw.dtype, copy=False)  # the sensor's precision: tau compares as before

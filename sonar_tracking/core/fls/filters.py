@@ -123,7 +123,9 @@ def trimmed_mean(values: np.ndarray, window_bins: int, window_beams: int, trim: 
                            np.cumsum(np.nan_to_num(srt, nan=0.0), axis=-1, dtype=np.float64)], axis=-1)
     lo = np.minimum(trim, (n - 1) // 2).clip(0)
     hi = np.maximum(n - lo, lo + 1)
-    take = lambda k: np.take_along_axis(csum, k[..., None], axis=-1)[..., 0]
+
+    def take(k):
+        return np.take_along_axis(csum, k[..., None], axis=-1)[..., 0]
     with np.errstate(invalid='ignore', divide='ignore'):
         out = (take(hi) - take(lo)) / (hi - lo)
     few = (n > 0) & (n < 2 * trim + 1)

@@ -34,7 +34,8 @@ import numpy as np
 from ..config import Config, ConfigError
 from ..intensity import IntensityConfig, condition
 from ..records import FEATURE_NAMES, REGION_DTYPE
-from ..sector import SectorGeometry
+from ..sector import GeometryError, SectorError, SectorGeometry
+from ..sector import check_sector as sector_rule
 from ..structure import GridBackground, StructureConfig, echo_shapes, is_structure_shape, vetoed_groups
 from .features import FeatureConfig, region_features
 from .filters import FilterConfig, PolarSweepFilter
@@ -95,27 +96,18 @@ class FlsFrame:
 def check_sector(amplitudes: np.ndarray, geometry: SectorGeometry,
                  intensity: IntensityConfig | None = None) -> tuple[np.ndarray, SectorGeometry]:
     """The sector as float32 linear amplitude (bins x beams) and its geometry, decoded and gated by
-    ``intensity`` (``max_range`` may cut bins), or FlsInputError saying what is wrong with it."""
+    ``intensity`` (``max_range`` may cut bins), or FlsInputError saying what is wrong with it (the
+    rule of every sector consumer, :func:`sonar_tracking.core.sector.check_sector`)."""
     intensity = intensity or IntensityConfig()
     a = np.asarray(amplitudes)
     if a.ndim != 2:
         raise FlsInputError(f'sector must be a 2-D array (range bins x beams), got shape {a.shape}')
     if a.size == 0:
         raise FlsInputError(f'sector is empty (shape {a.shape})')
-    if a.shape != geometry.shape:
-        raise FlsInputError(f'sector is {a.shape[0]} bins x {a.shape[1]} beams but its geometry says '
-                            f'{geometry.n_bins} x {geometry.n_beams}')
-    if a.dtype.kind not in 'uif':
-        raise FlsInputError(f'sector has dtype {a.dtype}; expected numbers (linear echo intensity)')
-    bad = ~np.isfinite(a)
-    if bad.any():
-        raise FlsInputError(f'sector has {int(bad.sum())} NaN or infinite values; the driver must send '
-                            'finite intensities')
-    if intensity.coding != 'db' and (a < 0).any():  # dB values may be negative; the others may not
-        raise FlsInputError(f'sector has {int((a < 0).sum())} negative values; expected {intensity.coding} '
-                            'values >= 0')
-    if not a.any():
-        raise FlsInputError('sector is all zero (no echo at all: transducer muted, gain 0 or a driver fault)')
+    try:
+        a = sector_rule(a, geometry, intensity.coding)
+    except (SectorError, GeometryError) as exc:
+        raise FlsInputError(str(exc)) from None
     amplitude, geometry = condition(a, geometry, intensity)
     return amplitude.astype(np.float32), geometry
 

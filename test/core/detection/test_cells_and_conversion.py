@@ -24,7 +24,8 @@ def test_cells_of_one_resolution_cell_merge_to_a_weighted_centroid():
     d = threshold_cells(a, 1.0, merge_bins=2, merge_beams=2)
     order = np.argsort(d.rows)
     assert len(d) == 2
-    assert d.rows[order[0]] == pytest.approx((2 * 9 + 3 * 3) / 12) and d.cols[order[0]] == pytest.approx((2 * 6 + 3 * 6) / 12)
+    assert d.rows[order[0]] == pytest.approx((2 * 9 + 3 * 3) / 12)
+    assert d.cols[order[0]] == pytest.approx((2 * 6 + 3 * 6) / 12)
     assert d.amplitude[order[0]] == 6.0 and (d.rows[order[1]], d.cols[order[1]]) == (6, 6)
     # Two cells a full resolution cell apart stay separate.
     b = np.zeros((8, 8))

@@ -159,7 +159,8 @@ def test_blanking_and_max_range_act_on_the_detections():
 
 
 @pytest.mark.parametrize('bad, match', [
-    (np.zeros((3, 4), np.float32), 'shape'),
+    (np.zeros((3, 4), np.float32), 'geometry says'),
+    (-np.ones(GEOM.shape, np.float32), 'negative'),
     (np.full(GEOM.shape, np.nan, np.float32), 'NaN'),
     (np.zeros(GEOM.shape, np.complex64), 'dtype'),
 ])
