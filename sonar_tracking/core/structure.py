@@ -107,8 +107,8 @@ class StructureConfig(Config):
                        "seabed bands, and all structure of a static sonar), 'world' (a grid in the world frame that "
                        "follows a moving sonar: walls, piles) or 'auto' (sensor, and world too once the pose "
                        'changes). The FLS pipeline learns on its image grid', choices=('auto', 'sensor', 'world'))
-    world_cell: float = setting(0.0, 'cell size of the world-frame map; 0 = the sensor cell at mid range (detector) '
-                                'or the image pixel (FLS)', unit='m', low=0.0, high=1e4)
+    world_cell: float = setting(0.0, 'cell size of the world-frame map (and of the FLS image background); 0 = the '
+                                'sensor cell at mid range (at least an image pixel)', unit='m', low=0.0, high=1e4)
     max_map_cells: int = setting(2_000_000, 'memory bound of each background map (sensor map 8 bytes a cell, world '
                                  'map 24); a sonar with more cells gets coarser map cells', low=1000,
                                  high=50_000_000, read_only=True)

@@ -260,7 +260,9 @@ class FlsProcessor:
             structure |= is_structure_shape(length, width, area, sc)
         if sc.persistence_veto:
             if self.background is None:
-                self.background = GridBackground(sc, sc.world_cell or res)
+                g = self._geometry
+                sensor_cell = max(g.range_resolution, 0.5 * (g.range_min + g.range_max) * g.angle_increment)
+                self.background = GridBackground(sc, sc.world_cell or max(res, sensor_cell))
             t = self._last_stamp
             if n:
                 on = self.background.persistent(x, y, t)
