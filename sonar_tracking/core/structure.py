@@ -33,12 +33,15 @@ Which moving targets are safe: a target whose echo is ``L`` long along its track
 keeps a map cell of size ``c`` echoing for ``d = (L + c) / v`` seconds, so that cell's echo time is
 at most ``d``: a target is never learnt while ``d < min_echo_time``, i.e. while it moves faster than
 ``(L + c) / min_echo_time``. With the default 7.5 s: an echo 2 m long with its cell is safe from
-0.27 m/s, a target at 0.5 m/s with ``L + c`` up to 3.75 m, at 1 m/s up to 7.5 m. Static structure
-that echoes in every look is vetoed ``min_echo_time`` after it is first seen; structure echoing in
-a fraction ``q >= persistence`` of looks after ``min_echo_time / q``. A target that stops is
-learnt after about ``T ln(1 / (1 - persistence)) = 42 s`` (defaults) and then vetoed: the price of
-any clutter map, and the reason ``T`` is a setting. Until then the shape gates below are the
-only rule, and they work from the first look.
+0.27 m/s, a target at 0.5 m/s with ``L + c`` up to 3.75 m, at 1 m/s up to 7.5 m; the ESC paper's
+harbour sonar (17 m cells, boats at 12 m/s, dwell about 3 s) wants 3 s. Static structure that
+echoes in every look is vetoed ``min_echo_time`` after it is first seen; structure echoing in a
+fraction ``q >= persistence`` of looks after ``min_echo_time / q``. The protection of moving targets
+is the echo time alone, so ``persistence`` can be low (0.2: the flickering edges of walls and
+seabed bands, cells echoing in a fifth of the looks, are structure too, while clutter cells echo in
+well under 1 %). A target that stops is learnt after about ``T ln(1 / (1 - persistence)) = 40 s``
+(defaults) and then vetoed: the price of any clutter map, and the reason ``T`` is a setting. Until
+then the shape gates below are the only rule, and they work from the first look.
 
 Where the map lives (``map``). The *sensor* map keeps one cell per range bin and beam bearing
 (the polar resolution cells: exact for a static sonar, fine near the sonar where a Cartesian grid
@@ -92,9 +95,9 @@ class StructureConfig(Config):
 
     enabled: bool = setting(False, 'reject echoes of static structure (walls, seabed bands, piles): the '
                             'persistent-echo veto and the shape gates below')
-    time_constant: float = setting(60.0, 'memory of the persistent-echo background: echo frequencies are averaged '
+    time_constant: float = setting(180.0, 'memory of the persistent-echo background: echo frequencies are averaged '
                                    'over about this long', unit='s', low=1.0, high=1e6)
-    persistence: float = setting(0.5, 'a map cell that echoed in at least this fraction of its recent looks is '
+    persistence: float = setting(0.2, 'a map cell that echoed in at least this fraction of its recent looks is '
                                  'static structure; 1 = switch the persistence veto off', low=0.05, high=1.0)
     min_echo_time: float = setting(7.5, 'a map cell is persistent only after echoing this long in all; moving '
                                    'targets are safe while (echo length + cell) / speed is shorter', unit='s',
