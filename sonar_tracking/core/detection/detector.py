@@ -236,6 +236,8 @@ class ActiveDetector:
             raise DetectionInputError(str(exc)) from None
         if stamp is not None and not math.isfinite(stamp):
             raise DetectionInputError(f'stamp {stamp} is not finite')
+        if not all(map(math.isfinite, pose)):
+            raise DetectionInputError(f'sonar pose {pose} is not finite')
         a, geometry = condition(raw, geometry, cfg.intensity)
         if raw.dtype.kind == 'f':
             a = a.astype(raw.dtype, copy=False)  # the sensor's precision: tau compares as before

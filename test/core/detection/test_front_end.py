@@ -171,6 +171,9 @@ def test_bad_sectors_are_refused_and_nothing_changes(bad, match):
     assert det.scans == 0 and det.background.polar.columns == 0
     with pytest.raises(DetectionInputError, match='stamp'):
         det.process(np.zeros(GEOM.shape, np.float32), GEOM, stamp=math.inf)
+    with pytest.raises(DetectionInputError, match='pose'):
+        det.process(np.zeros(GEOM.shape, np.float32), GEOM, (math.nan, 0.0, 0.0))
+    assert det.scans == 0
 
 
 def test_a_sector_blanked_entirely_gives_no_detections_and_esc_goes_on():
