@@ -201,6 +201,19 @@ class ActiveDetector:
             self.esc.state.integrator = self.esc.state.threshold
         self._enabled = bool(on)
 
+    def reconfigure(self, config: DetectorConfig) -> None:
+        """Apply settings that need no restart of ESC: ``intensity``, ``structure`` (a change starts
+        an empty background) and ``cells.max_detections``. Any other change raises ValueError:
+        build a new detector (ESC starts again from tau_0)."""
+        old = self.config
+        same = dataclasses.replace(config, intensity=old.intensity, structure=old.structure,
+                                   cells=dataclasses.replace(config.cells, max_detections=old.cells.max_detections))
+        if same != old:
+            raise ValueError('threshold, cell, SCMDE or ESC settings changed: make a new ActiveDetector')
+        self.config = config
+        if config.structure != old.structure:
+            self.background = SectorBackground(config.structure)
+
     def reset(self) -> None:
         """Back to tau_0 and scan 0, with an empty structure background."""
         self.esc.reset()

@@ -180,3 +180,20 @@ def test_a_sector_blanked_entirely_gives_no_detections_and_esc_goes_on():
     det = ActiveDetector(DetectorConfig.from_flat({'intensity.blank_range': 100.0}))
     r = det.process(np.full(GEOM.shape, 50.0, np.float32), GEOM)
     assert len(r.detections) == 0 and r.mean_density == 0.0 and r.next_threshold < r.threshold
+
+
+def test_reconfigure_keeps_the_threshold_for_intensity_and_structure_changes():
+    rng = np.random.default_rng(8)
+    det = ActiveDetector(DetectorConfig.from_flat({'structure.enabled': True}))
+    for k in range(5):
+        det.process(scene(rng, float(k)), GEOM, stamp=float(k))
+    tau, scans = det.threshold, det.scans
+    new = DetectorConfig.from_flat({'structure.enabled': True, 'structure.max_length': 6.0,
+                                    'intensity.blank_range': 3.0, 'cells.max_detections': 50})
+    det.reconfigure(new)
+    assert det.threshold == tau and det.scans == scans and det.config is new
+    assert det.background.polar.columns == 0                    # a new structure background
+    r = det.process(scene(rng, 5.0), GEOM, stamp=5.0)
+    assert len(r.detections) <= 50 and r.detections['range'].min() >= 3.0
+    with pytest.raises(ValueError, match='new ActiveDetector'):
+        det.reconfigure(DetectorConfig.from_flat({'threshold.initial': 4.0}))
