@@ -17,6 +17,7 @@ CONSOLE_SCRIPTS = [
     'sonar_stack = sonar_tracking.tools.sonar_stack:main',
     'bag_record = sonar_tracking.tools.bag_record:main',
     'bag_replay = sonar_tracking.tools.bag_replay:main',
+    'sonar_import = sonar_tracking.tools.sonar_import:main',
 ]
 
 setup(
@@ -28,6 +29,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + PACKAGE + '/config/sensors', sorted(glob('config/sensors/*.yaml'))),
     ],
     install_requires=['setuptools'],
     zip_safe=False,
