@@ -35,7 +35,8 @@ from .msgdefs import BUILTIN_DEFINITIONS, register_definitions
 from .options import ImportOptions, angle_to_rad
 from .sweeps import Ping
 
-__all__ = ['Item', 'Frame', 'Recording', 'open_recording', 'classify', 'RecordingError', 'even_grid']
+__all__ = ['Item', 'Frame', 'Recording', 'open_recording', 'classify', 'RecordingError', 'even_grid',
+           'projected_to_sector']
 
 ROLES = ('scanline', 'echo', 'projected', 'odometry')
 _IMAGE_DTYPES = {0: np.uint8, 1: np.int8, 2: np.uint16, 3: np.int16, 4: np.uint32, 5: np.int32, 6: np.uint64,
@@ -372,53 +373,59 @@ class BagRecording(Recording):
 
     def _projected(self, msg: Any, stamp: int, log_ns: int, unit: str, options: ImportOptions,
                    last_frame: list) -> Frame:
-        """A ProjectedSonarImage as a frame in increasing REP-103 bearing on even grids."""
-        dirs = np.array([(float(v.x), float(v.y), float(v.z)) for v in msg.beam_directions])
-        ranges = np.asarray(msg.ranges, dtype=np.float64)
-        n, m = len(dirs), len(ranges)
-        if n == 0 or m == 0:
-            raise ValueError(f'image has {n} beams and {m} ranges')
-        img = msg.image
-        dtype = _IMAGE_DTYPES.get(int(img.dtype))
-        if dtype is None:
-            raise ValueError(f'image dtype code {int(img.dtype)} is not one of SonarImageData\'s 0..9')
-        dt = np.dtype(dtype).newbyteorder('>' if img.is_bigendian else '<')
-        raw = np.asarray(img.data, dtype=np.uint8)
-        if raw.size != n * m * dt.itemsize:
-            raise ValueError(f'image data has {raw.size} bytes, {n} beams x {m} ranges x {dt.itemsize} bytes '
-                             f'= {n * m * dt.itemsize} expected')
-        flat = raw.view(dt).astype(dt.newbyteorder('='))
-        values = flat.reshape(m, n) if options.image_layout == 'range_major' else flat.reshape(n, m).T
-        frame = options.beam_frame
-        if frame == 'auto':
-            frame = 'rep103' if np.all(np.abs(dirs[:, 2]) < 1e-9) else 'message'
-        az = np.arctan2(dirs[:, 1], dirs[:, 0]) if frame == 'rep103' else np.arctan2(-dirs[:, 1], dirs[:, 2])
-        if options.head_clockwise:
-            az = -az
-        if not np.all(np.isfinite(az)) or not np.all(np.isfinite(ranges)):
-            raise ValueError('beam directions or ranges are not finite')
-        order = np.argsort(az, kind='stable')
-        az, values = az[order], values[:, order]
-        if n > 1 and np.any(np.diff(az) <= 0):
-            raise ValueError('two beams have the same bearing')
-        rorder = np.argsort(ranges, kind='stable')
-        ranges, values = ranges[rorder], values[rorder]
-        values, a0, a1 = even_grid(values, az, axis=1)
-        values, r0, r1 = even_grid(values, ranges, axis=0)
-        if values.dtype.kind in 'iu' and values.dtype.itemsize > 2 or values.dtype.kind == 'i':
-            values = values.astype(np.float32)
-        if values.dtype.kind == 'f':
-            values = values.astype(np.float32)
-            if (values < 0).any():
-                self.problem(options.topic or 'sonar', stamp,
-                             f'{int((values < 0).sum())} negative intensities set to 0')
-                values = np.maximum(values, 0)
         scan_time = (stamp - last_frame[0]) / 1e9 if 0 < last_frame[0] < stamp else 0.0
         last_frame[0] = stamp
-        geom = SectorGeometry(angle_min=a0, angle_increment=(a1 - a0) / (n - 1) if n > 1 else math.radians(1.0),
-                              n_beams=n, range_min=r0, range_max=r1, n_bins=m, ping_period=0.0,
-                              scan_time=scan_time)
+        values, geom, negatives = projected_to_sector(msg, options, scan_time)
+        if negatives:
+            self.problem(options.topic or 'sonar', stamp, f'{negatives} negative intensities set to 0')
         return Frame(stamp, log_ns, values, geom)
+
+
+def projected_to_sector(msg: Any, options: ImportOptions, scan_time: float = 0.0
+                        ) -> tuple[np.ndarray, SectorGeometry, int]:
+    """A ``ProjectedSonarImage`` (rclpy or rosbags) as sector values and geometry in increasing REP-103
+    bearing on even bearing and range grids (see the module docstring), and the number of negative
+    values set to 0. Raises ValueError for a malformed message."""
+    dirs = np.array([(float(v.x), float(v.y), float(v.z)) for v in msg.beam_directions])
+    ranges = np.asarray(msg.ranges, dtype=np.float64)
+    n, m = len(dirs), len(ranges)
+    if n == 0 or m == 0:
+        raise ValueError(f'image has {n} beams and {m} ranges')
+    img = msg.image
+    dtype = _IMAGE_DTYPES.get(int(img.dtype))
+    if dtype is None:
+        raise ValueError(f'image dtype code {int(img.dtype)} is not one of SonarImageData\'s 0..9')
+    dt = np.dtype(dtype).newbyteorder('>' if img.is_bigendian else '<')
+    raw = np.frombuffer(bytes(img.data), dtype=np.uint8) if not isinstance(img.data, np.ndarray) else img.data
+    if raw.size != n * m * dt.itemsize:
+        raise ValueError(f'image data has {raw.size} bytes, {n} beams x {m} ranges x {dt.itemsize} bytes '
+                         f'= {n * m * dt.itemsize} expected')
+    flat = raw.view(dt).astype(dt.newbyteorder('='))
+    values = flat.reshape(m, n) if options.image_layout == 'range_major' else flat.reshape(n, m).T
+    frame = options.beam_frame
+    if frame == 'auto':
+        frame = 'rep103' if np.all(np.abs(dirs[:, 2]) < 1e-9) else 'message'
+    az = np.arctan2(dirs[:, 1], dirs[:, 0]) if frame == 'rep103' else np.arctan2(-dirs[:, 1], dirs[:, 2])
+    if options.head_clockwise:
+        az = -az
+    if not np.all(np.isfinite(az)) or not np.all(np.isfinite(ranges)):
+        raise ValueError('beam directions or ranges are not finite')
+    order = np.argsort(az, kind='stable')
+    az, values = az[order], values[:, order]
+    if n > 1 and np.any(np.diff(az) <= 0):
+        raise ValueError('two beams have the same bearing')
+    rorder = np.argsort(ranges, kind='stable')
+    ranges, values = ranges[rorder], values[rorder]
+    values, a0, a1 = even_grid(values, az, axis=1)
+    values, r0, r1 = even_grid(values, ranges, axis=0)
+    if values.dtype not in (np.uint8, np.uint16):
+        values = values.astype(np.float32)
+    negatives = int((values < 0).sum()) if values.dtype.kind == 'f' else 0
+    if negatives:
+        values = np.maximum(values, 0)
+    geom = SectorGeometry(angle_min=a0, angle_increment=(a1 - a0) / (n - 1) if n > 1 else math.radians(1.0),
+                          n_beams=n, range_min=r0, range_max=r1, n_bins=m, ping_period=0.0, scan_time=scan_time)
+    return np.ascontiguousarray(values), geom, negatives
 
 
 def _stamp_ns(msg: Any, fallback: int) -> int:
