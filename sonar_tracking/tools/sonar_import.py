@@ -6,6 +6,9 @@ DAVE), Ping Viewer ``.bin`` logs of the Ping360, and folders of polar frames wit
 Output: ``/sonar/sector`` + ``/sonar/sector_info`` (+ ``/platform/odometry`` when the recording has
 odometry), MCAP by default. ``--inspect`` lists what is recognised and what would be written.
 
+``--picture RUN -o run.png`` draws a run recorded by ``sonar_stack --record`` (last FLS image,
+regions, tracks, detections, sonar path).
+
 Exit codes: 0 = everything imported; 1 = imported, but with problems (each printed with its topic
 and stamp: undecodable or malformed messages skipped, pings padded, missing pings, time gaps, a
 cut-off file, topics of unknown type); 2 = nothing imported (bad arguments, unreadable recording,
@@ -24,15 +27,17 @@ PRESET_KEY = 'sonar_import'
 
 
 def load_preset(name: str) -> dict:
-    """The importer settings of a sensor preset (``config/sensors/NAME.yaml``, key ``sonar_import``)."""
+    """The importer settings of a sensor preset (``config/sensors/NAME.yaml``, ``sonar_import:
+    ros__parameters:``, so the file is also a valid ROS parameter file for the nodes it configures)."""
     import yaml
 
     from sonar_tracking.resources import config_path
     path = Path(name) if name.endswith('.yaml') else config_path(f'sensors/{name}.yaml')
     data = yaml.safe_load(path.read_text()) or {}
-    if PRESET_KEY not in data:
-        raise ValueError(f'{path} has no {PRESET_KEY!r} section')
-    return dict(data[PRESET_KEY] or {})
+    section = (data.get(PRESET_KEY) or {}).get('ros__parameters')
+    if not isinstance(section, dict):
+        raise ValueError(f'{path} has no {PRESET_KEY}: ros__parameters: section')
+    return dict(section)
 
 
 def _stamp(ns: int) -> str:
@@ -47,6 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('-o', '--output', type=Path, help='bag directory to create (never overwritten)')
     p.add_argument('--inspect', action='store_true', help='list the recognised topics and what the import would '
                    'write; write nothing')
+    p.add_argument('--picture', action='store_true', help='draw the run recorded in RECORDING (sonar_stack --record: '
+                   'last FLS image, regions, tracks, detections, sonar path) into the PNG given by -o')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     p.add_argument('--preset', help='sensor preset (config/sensors/NAME.yaml or a path): importer settings; '
                    'options given here override it')
@@ -115,6 +122,18 @@ def main(argv: list[str] | None = None) -> int:
     except (ConfigError, ValueError, FileNotFoundError, OSError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return EXIT_FAILED
+    if args.picture:
+        if args.output is None or args.output.suffix != '.png':
+            print('error: --picture needs -o FILE.png', file=sys.stderr)
+            return EXIT_FAILED
+        from .importers.picture import draw_run
+        try:
+            drawn = draw_run(args.recording, args.output)
+        except Exception as exc:  # noqa: BLE001 - any reader failure is reported the same way
+            print(f'error: cannot draw {args.recording}: {exc}', file=sys.stderr)
+            return EXIT_FAILED
+        print(f'sonar_import: drew {drawn} into {args.output}', file=sys.stderr)
+        return EXIT_OK
     if not args.inspect and args.output is None:
         print('error: give -o/--output BAG (or --inspect)', file=sys.stderr)
         return EXIT_FAILED

@@ -68,6 +68,6 @@ def test_every_preset_value_has_a_reason(path):
 
 def test_a_wrong_name_fails(tmp_path):
     bad = tmp_path / 'bad.yaml'
-    bad.write_text('sonar_import:\n  head_clockwize: true  # typo\n')
+    bad.write_text('sonar_import:\n  ros__parameters:\n    head_clockwize: true  # typo\n')
     with pytest.raises(Exception, match='head_clockwize'):
         ImportOptions.from_flat(load_preset(str(bad)))
