@@ -88,6 +88,7 @@ def draw_run(bag: Path, png: Path) -> dict:
     if path:
         p = np.array(path)
         ax.plot(p[:, 0], p[:, 1], 'c--', lw=1, label='sonar path')
+        ax.plot(p[-1, 0], p[-1, 1], 'c^', ms=8, label='sonar (last pose)')
     ax.set_aspect('equal')
     ax.set_xlabel('x [m]')
     ax.set_ylabel('y [m]')
