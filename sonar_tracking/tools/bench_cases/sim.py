@@ -39,17 +39,18 @@ def _node_rate0():
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Image, LaserScan, PointCloud2
 
-    from sonar_tracking.nodes._runtime import configure_dds
+    from sonar_tracking.ros.runtime import configure_dds, private_domain
 
     def measure() -> float:
         configure_dds()
+        private_domain()   # another pipeline on this machine must not answer for ours
         rclpy.init()
         node = rclpy.create_node('bench_sim_probe')
         qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
         stamps = []
-        node.create_subscription(Image, '/sonar/sector', lambda m: stamps.append(time.monotonic()), qos)
-        node.create_subscription(LaserScan, '/sonar/sector_info', lambda m: None, qos)
-        node.create_subscription(PointCloud2, '/sonar/truth', lambda m: None, qos)
+        node.create_subscription(Image, 'sonar/sector', lambda m: stamps.append(time.monotonic()), qos)
+        node.create_subscription(LaserScan, 'sonar/sector_info', lambda m: None, qos)
+        node.create_subscription(PointCloud2, 'sonar/truth', lambda m: None, qos)
         child = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.nodes.seaking_sim', '--ros-args',
                                   '-p', 'scenario:=scenario2', '-p', 'rate:=0.0', '-p', 'wait_for_subscribers:=1',
                                   '-p', 'shutdown_when_done:=true'], start_new_session=True,
