@@ -497,3 +497,35 @@ def test_nothing_to_import_exits_2(tmp_path, capsys):
     assert run(tmp_path / 'odo', '-o', tmp_path / 'out') == 2
     assert 'no sonar topic recognised' in capsys.readouterr().err
     assert not (tmp_path / 'out').exists()
+
+
+def test_picture_of_a_recorded_run(tmp_path):
+    """--picture draws what a stack recorded: the last FLS image with its regions, track trails, path."""
+    from msg_adapters.map_info import grid_to_map_info
+    from sonar_tracking.core.fls.grid import ImageGrid
+    from sonar_tracking.core.records import GPF_TRACK_DTYPE, REGION_DTYPE
+    ts = typestore(False)
+    types = ma.RosbagsTypes(ts)
+    out = BagOut(tmp_path / 'run', False, ts)
+    grid = ImageGrid(resolution=0.1, width=120, height=80, origin_x=-2.0, origin_y=-4.0, origin_yaw=0.3)
+    for k in range(3):
+        ns = T0 + k * 10**9
+        image = np.ones(grid.shape, np.float32)
+        image[40:43, 60:63] = 30.0
+        out.write('/fls/image', 'sensor_msgs/msg/Image', ma.array_to_image(image, stamp_ns=ns, frame_id='world',
+                                                                           types=types), ns)
+        out.write('/fls/image_info', 'nav_msgs/msg/MapMetaData', grid_to_map_info(grid, ns, types), ns)
+        regions = np.zeros(2, REGION_DTYPE)
+        regions['x'], regions['y'] = (1.0, 2.0), (0.5, -1.0)
+        out.write('/fls/regions', 'sensor_msgs/msg/PointCloud2', ma.array_to_cloud(regions, stamp_ns=ns, types=types), ns)
+        tracks = np.zeros(1, GPF_TRACK_DTYPE)
+        tracks['track_id'], tracks['x'], tracks['y'] = 7, 1.0 + 0.1 * k, 0.5
+        out.write('/gpf/tracks', 'sensor_msgs/msg/PointCloud2', ma.array_to_cloud(tracks, stamp_ns=ns, types=types), ns)
+        out.write('/platform/odometry', 'nav_msgs/msg/Odometry', odometry(ts, ns, False), ns)
+    out.close()
+    png = tmp_path / 'run.png'
+    assert run(tmp_path / 'run', '--picture', '-o', png) == 0
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    from sonar_tracking.tools.importers.picture import draw_run
+    assert draw_run(tmp_path / 'run', tmp_path / 'again.png') == {
+        'image': 1, 'regions': 2, 'gpf_tracks': 1, 'tracks': 0, 'detections': 0, 'poses': 3}

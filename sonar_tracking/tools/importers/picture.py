@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 import msg_adapters as ma
+from msg_adapters.map_info import fls_image, map_info_to_grid
 
 __all__ = ['draw_run']
 
@@ -29,8 +30,6 @@ def draw_run(bag: Path, png: Path) -> dict:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
     from rosbags.typesys import Stores, get_typestore
-
-    from sonar_tracking.nodes._image_info import map_info_to_grid
 
     from ..bags import read_bag
     store = get_typestore(Stores.ROS2_JAZZY)
@@ -63,7 +62,7 @@ def draw_run(bag: Path, png: Path) -> dict:
         if info is None:
             continue
         grid = map_info_to_grid(info)
-        a = ma.image_to_array(img).astype(np.float32)
+        a = fls_image(img, grid.shape)
         step = max(1, int(np.ceil(max(a.shape) / _MAX_SIDE)))
         a = a[::step, ::step]
         rows = np.arange(a.shape[0] + 1) * step - 0.5
