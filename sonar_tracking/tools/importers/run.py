@@ -23,11 +23,12 @@ import msg_adapters as ma
 from sonar_tracking.core.intensity import condition, gate_ranges
 from sonar_tracking.core.sector import SectorGeometry
 
-from .options import ImportOptions
+from .options import ImportOptions, ProjectedOptions
 from .sources import Frame, Item, Recording
 from .sweeps import SweepAssembler
 
-__all__ = ['ImportStats', 'SectorBagWriter', 'run_import', 'SECTOR_TOPIC', 'INFO_TOPIC', 'ODOMETRY_TOPIC']
+__all__ = ['ImportStats', 'SectorBagWriter', 'run_import', 'condition_sector', 'SECTOR_TOPIC', 'INFO_TOPIC',
+           'ODOMETRY_TOPIC']
 
 SECTOR_TOPIC, INFO_TOPIC, ODOMETRY_TOPIC = '/sonar/sector', '/sonar/sector_info', '/platform/odometry'
 
@@ -96,7 +97,8 @@ class SectorBagWriter:
         self.writer.close()
 
 
-def _gate(values: np.ndarray, geometry: SectorGeometry, options: ImportOptions) -> tuple[np.ndarray, SectorGeometry]:
+def condition_sector(values: np.ndarray, geometry: SectorGeometry,
+                     options: ProjectedOptions) -> tuple[np.ndarray, SectorGeometry]:
     """The sector as written: decoded with core.intensity, or kept with only its range gating."""
     cfg = options.intensity
     if options.decode:
@@ -119,7 +121,7 @@ def run_import(recording: Recording, options: ImportOptions, writer: SectorBagWr
     frame_ids: dict[int, str] = {}
 
     def emit(stamp_ns: int, log_ns: int, values: np.ndarray, geometry: SectorGeometry, frame_id: str) -> None:
-        values, geometry = _gate(values, geometry, options)
+        values, geometry = condition_sector(values, geometry, options)
         key = (geometry.n_bins, geometry.n_beams, round(float(np.degrees(geometry.angle_increment)), 4))
         stats.geometries[key] = stats.geometries.get(key, 0) + 1
         stats.sectors += 1

@@ -32,7 +32,7 @@ import numpy as np
 from sonar_tracking.core.sector import GeometryError, SectorGeometry
 
 from .msgdefs import BUILTIN_DEFINITIONS, register_definitions
-from .options import ImportOptions, angle_to_rad
+from .options import ImportOptions, ProjectedOptions, angle_to_rad
 from .sweeps import Ping
 
 __all__ = ['Item', 'Frame', 'Recording', 'open_recording', 'classify', 'RecordingError', 'even_grid',
@@ -381,7 +381,7 @@ class BagRecording(Recording):
         return Frame(stamp, log_ns, values, geom)
 
 
-def projected_to_sector(msg: Any, options: ImportOptions, scan_time: float = 0.0
+def projected_to_sector(msg: Any, options: ProjectedOptions, scan_time: float = 0.0
                         ) -> tuple[np.ndarray, SectorGeometry, int]:
     """A ``ProjectedSonarImage`` (rclpy or rosbags) as sector values and geometry in increasing REP-103
     bearing on even bearing and range grids (see the module docstring), and the number of negative
