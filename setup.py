@@ -13,6 +13,7 @@ CONSOLE_SCRIPTS = [
     'imm_ipda_tracker = sonar_tracking.nodes.imm_ipda_tracker:main',
     'fls_features = sonar_tracking.nodes.fls_features:main',
     'gpf_tracker = sonar_tracking.nodes.gpf_tracker:main',
+    'projected_sonar_adapter = sonar_tracking.nodes.projected_sonar_adapter:main',
     'sonar_eval = sonar_tracking.tools.sonar_eval:main',
     'sonar_stack = sonar_tracking.tools.sonar_stack:main',
     'bag_record = sonar_tracking.tools.bag_record:main',
