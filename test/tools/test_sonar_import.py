@@ -87,7 +87,8 @@ def odometry(ts, ns, ros1):
     x, y, yaw = POSE
     pose = new(ts, 'geometry_msgs/msg/Pose',
                position=new(ts, 'geometry_msgs/msg/Point', x=x, y=y, z=-5.0),
-               orientation=new(ts, 'geometry_msgs/msg/Quaternion', x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2)))
+               orientation=new(ts, 'geometry_msgs/msg/Quaternion', x=0.0, y=0.0, z=math.sin(yaw / 2),
+                               w=math.cos(yaw / 2)))
     return new(ts, 'nav_msgs/msg/Odometry', header=header(ts, ns, ros1), child_frame_id='base_link',
                pose=new(ts, 'geometry_msgs/msg/PoseWithCovariance', pose=pose))
 
@@ -122,10 +123,9 @@ def write_scanning(path: Path, kind: str, mode: str, clockwise: bool, ros1: bool
     rng = np.random.default_rng(seed)
     if kind == 'scanline':
         ts, msgtype, zero, unit = typestore(ros1, SCANLINE_DEFS), 'micron_test/msg/ScanLine', 180.0, 180 / math.pi
-    elif kind == 'echo_rad':
-        ts, msgtype, zero, unit = typestore(ros1, {'ping_test/msg/SonarEcho': ECHO_DEF}), 'ping_test/msg/SonarEcho', 0.0, 1.0
-    else:  # echo in gradians 0..399, as the ROS 1 ping360_sonar driver sends
-        ts, msgtype, zero, unit = typestore(ros1, {'ping_test/msg/SonarEcho': ECHO_DEF}), 'ping_test/msg/SonarEcho', 0.0, 200 / math.pi
+    else:  # echoes in radians (ROS 2 ping360_sonar) or gradians 0..399 (its ROS 1 driver)
+        ts, msgtype, zero = typestore(ros1, {'ping_test/msg/SonarEcho': ECHO_DEF}), 'ping_test/msg/SonarEcho', 0.0
+        unit = 1.0 if kind == 'echo_rad' else 200 / math.pi
     out = BagOut(path, ros1, ts, storage)
     pings = []
     for k, b in enumerate(head_bearings(mode)):
@@ -168,19 +168,19 @@ def read_output(bag: Path):
     return sectors, poses
 
 
-def columns(sectors) -> list[tuple[float, float]]:
-    """(time [s], bearing) of every sector column, from stamp + j * ping_period."""
+def columns(sectors, t0: int = T0) -> list[tuple[float, float]]:
+    """(time [s] since t0, bearing) of every sector column, from stamp + j * ping_period."""
     out = []
     for _, g, stamp, _ in sectors:
         for j, b in enumerate(g.bearings()):
-            out.append(((stamp - T0) / 1e9 + j * g.ping_period, math.remainder(b, 2 * math.pi)))
+            out.append(((stamp - t0) / 1e9 + j * g.ping_period, math.remainder(b, 2 * math.pi)))
     return sorted(out)
 
 
-def assert_every_ping_once(sectors, pings) -> None:
-    cols = columns(sectors)
+def assert_every_ping_once(sectors, pings, t0: int = T0) -> None:
+    cols = columns(sectors, t0)
     assert len(cols) == len(pings)
-    want = sorted(((ns - T0) / 1e9, b) for ns, b in pings)
+    want = sorted(((ns - t0) / 1e9, b) for ns, b in pings)
     t = np.array(cols)
     w = np.array(want)
     assert np.max(np.abs(t[:, 0] - w[:, 0])) < 1e-4
@@ -347,7 +347,7 @@ def qstring(text: str) -> bytes:
 def write_pingviewer(path: Path, clockwise_grads: bool = True, drop_last_bytes: int = 0) -> list[tuple[int, float]]:
     from brping import PingMessage
     rng = np.random.default_rng(7)
-    sample_period = 80 * 0 + int(round(2 * BIN / 1500 / 25e-9))  # 25 ns ticks for BIN metres per sample
+    sample_period = int(round(2 * BIN / 1500 / 25e-9))  # 25 ns ticks for BIN metres per sample
     blob = qstring('PingViewer sensor log file') + struct.pack('>i', 1)
     for s in ('abc123', '2024-05-06', 'v2.3', 'Linux', '6'):
         blob += qstring(s)
@@ -378,17 +378,12 @@ def test_ping_viewer_log(tmp_path):
     assert run(src, '-o', tmp_path / 'out', '--preset', 'ping360') == 0
     sectors, poses = read_output(tmp_path / 'out')
     assert not poses
-    global T0
-    t0, T0 = T0, 1714953600 * 10**9
-    try:
-        assert_every_ping_once(sectors, pings)
-    finally:
-        T0 = t0
+    assert_every_ping_once(sectors, pings, t0=1714953600 * 10**9)
     g = sectors[0][1]
     assert math.isclose(g.range_min, 0.5 * BIN, rel_tol=1e-3) and g.n_bins == N_BINS
-    x, y, yaw = POSE
     (rx, ry, bearing), cell = fls_target(sectors, [], decode_db=60.0)
-    assert math.hypot(rx - TARGET_RANGE * math.cos(TARGET_BEARING), ry - TARGET_RANGE * math.sin(TARGET_BEARING)) <= cell
+    tx, ty = TARGET_RANGE * math.cos(TARGET_BEARING), TARGET_RANGE * math.sin(TARGET_BEARING)
+    assert math.hypot(rx - tx, ry - ty) <= cell
     assert bearing > 0
 
 
@@ -483,9 +478,11 @@ def test_bad_messages_are_reported_and_the_rest_imported(tmp_path, capsys):
     assert '/mystery' in err and 'type unknown' in err
     sectors, _ = read_output(tmp_path / 'out')
     assert_every_ping_once(sectors, pings)
-    padded = [a for a, g, s, _ in sectors if g.n_beams and any(abs(c[0] - (pings[10][0] - T0) / 1e9) < 1e-6
-                                                                 for c in columns([(a, g, s, '')]))]
-    assert padded
+    # The short ping's column holds its 150 samples and 50 zeros (nothing measured) beyond them.
+    t10 = (pings[10][0] - T0) / 1e9
+    a, g, stamp, _ = next(x for x in sectors if any(abs(c[0] - t10) < 1e-6 for c in columns([x])))
+    j = int(round((t10 - (stamp - T0) / 1e9) / g.ping_period))
+    assert a[150:, j].max() == 0 and a[:150, j].min() > 0
 
 
 def test_nothing_to_import_exits_2(tmp_path, capsys):
@@ -517,7 +514,8 @@ def test_picture_of_a_recorded_run(tmp_path):
         out.write('/fls/image_info', 'nav_msgs/msg/MapMetaData', grid_to_map_info(grid, ns, types), ns)
         regions = np.zeros(2, REGION_DTYPE)
         regions['x'], regions['y'] = (1.0, 2.0), (0.5, -1.0)
-        out.write('/fls/regions', 'sensor_msgs/msg/PointCloud2', ma.array_to_cloud(regions, stamp_ns=ns, types=types), ns)
+        out.write('/fls/regions', 'sensor_msgs/msg/PointCloud2', ma.array_to_cloud(regions, stamp_ns=ns, types=types),
+                  ns)
         tracks = np.zeros(1, GPF_TRACK_DTYPE)
         tracks['track_id'], tracks['x'], tracks['y'] = 7, 1.0 + 0.1 * k, 0.5
         out.write('/gpf/tracks', 'sensor_msgs/msg/PointCloud2', ma.array_to_cloud(tracks, stamp_ns=ns, types=types), ns)

@@ -87,7 +87,8 @@ BUILTIN_DEFINITIONS: dict[str, str] = {
     'marine_acoustic_msgs/msg/PingInfo': _PING_INFO,
     'marine_acoustic_msgs/msg/SonarImageData': _IMAGE_DATA,
     'marine_acoustic_msgs/msg/ProjectedSonarImage': _PROJECTED.replace(
-        'PingInfo ', 'marine_acoustic_msgs/PingInfo ').replace('SonarImageData ', 'marine_acoustic_msgs/SonarImageData '),
+        'PingInfo ', 'marine_acoustic_msgs/PingInfo ').replace(
+        'SonarImageData ', 'marine_acoustic_msgs/SonarImageData '),
 }
 
 

@@ -259,7 +259,8 @@ class BagRecording(Recording):
                 raise RecordingError(f'topic {options.topic} is not in {self.path}; it has {sorted(infos)}')
             if t.role not in ('scanline', 'echo', 'projected'):
                 raise RecordingError(f'topic {t.name} [{t.msgtype}] is not a recognised sonar message '
-                                     f'({t.note or "its fields are not those of a scan line, echo or ProjectedSonarImage"})')
+                                     f'({t.note or "its fields are not those of a scan line, echo or "}'
+                                     f'{"" if t.note else "ProjectedSonarImage"})')
             return t
         sonar = [t for t in infos.values() if t.role in ('scanline', 'echo', 'projected')]
         if not sonar:
