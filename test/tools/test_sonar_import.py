@@ -387,6 +387,15 @@ def test_ping_viewer_log(tmp_path):
     assert bearing > 0
 
 
+def test_cut_off_ping_viewer_log(tmp_path, capsys):
+    src = tmp_path / 'ping360_20240506_100000.bin'
+    pings = write_pingviewer(src, drop_last_bytes=100)
+    assert run(src, '-o', tmp_path / 'out', '--preset', 'ping360') == 1
+    assert 'the file is cut off' in capsys.readouterr().err
+    sectors, _ = read_output(tmp_path / 'out')
+    assert_every_ping_once(sectors, pings[:-1], t0=1714953600 * 10**9)
+
+
 # -- folders of polar frames ------------------------------------------------------------------------
 
 @pytest.mark.parametrize('suffix', ['png', 'npy'])

@@ -491,7 +491,7 @@ class PingViewerRecording(Recording):
         return {'version': version, 'build': info, 'family': family, 'type': sensor}, pos
 
     def _records(self) -> Iterator[tuple[int, str, bytes]]:
-        pos = self.pos
+        pos, last = self.pos, ''
         while pos < len(self.data):
             start = pos
             try:
@@ -503,8 +503,9 @@ class PingViewerRecording(Recording):
                 pos += 4 + n
             except struct.error:
                 self.problem(self.TOPIC, 0, f'the file is cut off: the record at byte {start} of {len(self.data)} '
-                                            'is incomplete; the records before it were imported')
+                                            f'is incomplete; the records up to {last or "the header"} were imported')
                 return
+            last = stamp
             yield start, stamp, body
 
     def _messages(self) -> Iterator[tuple[int, str, Any]]:
