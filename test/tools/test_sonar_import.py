@@ -96,12 +96,14 @@ def odometry(ts, ns, ros1):
 class BagOut:
     """A ROS 1 or ROS 2 bag written with rosbags; ``write(topic, type, msg, ns)``."""
 
-    def __init__(self, path: Path, ros1: bool, ts, storage: str = 'mcap') -> None:
+    def __init__(self, path: Path, ros1: bool, ts, storage: str = 'mcap', chunk_bytes: int = 0) -> None:
         from rosbags.rosbag1 import Writer as W1
         from rosbags.rosbag2 import StoragePlugin, Writer as W2
         self.ros1, self.ts, self.conns = ros1, ts, {}
         plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
         self.w = W1(path) if ros1 else W2(path, version=8, storage_plugin=plugin)
+        if chunk_bytes:
+            self.w.chunk_threshold = chunk_bytes
         self.w.open()
 
     def write(self, topic, msgtype, msg, ns) -> None:
@@ -118,7 +120,7 @@ class BagOut:
 
 
 def write_scanning(path: Path, kind: str, mode: str, clockwise: bool, ros1: bool, seed: int = 1,
-                   with_odometry: bool = True, storage: str = 'mcap') -> list[tuple[int, float]]:
+                   with_odometry: bool = True, storage: str = 'mcap', chunk_bytes: int = 0) -> list[tuple[int, float]]:
     """A bag of per-ping messages; returns the (stamp_ns, REP-103 bearing) of every ping."""
     rng = np.random.default_rng(seed)
     if kind == 'scanline':
@@ -126,7 +128,7 @@ def write_scanning(path: Path, kind: str, mode: str, clockwise: bool, ros1: bool
     else:  # echoes in radians (ROS 2 ping360_sonar) or gradians 0..399 (its ROS 1 driver)
         ts, msgtype, zero = typestore(ros1, {'ping_test/msg/SonarEcho': ECHO_DEF}), 'ping_test/msg/SonarEcho', 0.0
         unit = 1.0 if kind == 'echo_rad' else 200 / math.pi
-    out = BagOut(path, ros1, ts, storage)
+    out = BagOut(path, ros1, ts, storage, chunk_bytes)
     pings = []
     for k, b in enumerate(head_bearings(mode)):
         ns = T0 + k * PERIOD_NS
@@ -450,6 +452,20 @@ def test_cut_off_bag_imports_up_to_the_cut(tmp_path, capsys):
     cols = columns(sectors)
     assert 0 < len(cols) < len(pings)
     # What was imported is a prefix of the recording, each ping once.
+    assert_every_ping_once(sectors, pings[:len(cols)])
+
+
+@pytest.mark.parametrize('chunk_bytes', [0, 30_000], ids=['one-cut-chunk', 'chunks'])
+def test_ros1_bag_without_index_imports_up_to_the_cut(tmp_path, capsys, chunk_bytes):
+    """A ROS 1 bag whose recorder was killed (no index, the last chunk cut) is read record by record."""
+    pings = write_scanning(tmp_path / 'in.bag', 'echo_grad', 'continuous', False, ros1=True, chunk_bytes=chunk_bytes)
+    data = (tmp_path / 'in.bag').read_bytes()
+    (tmp_path / 'in.bag').write_bytes(data[: int(len(data) * 0.6)])
+    assert run(tmp_path / 'in.bag', '-o', tmp_path / 'out') == 1
+    assert 'has no index' in capsys.readouterr().err
+    sectors, poses = read_output(tmp_path / 'out')
+    cols = columns(sectors)
+    assert 0.4 * len(pings) < len(cols) < 0.7 * len(pings) and poses
     assert_every_ping_once(sectors, pings[:len(cols)])
 
 

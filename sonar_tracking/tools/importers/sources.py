@@ -164,6 +164,7 @@ class BagRecording(Recording):
         self.typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_JAZZY)
         self._topics: dict[str, tuple[str, int]] = {}
         self._unknown: set[str] = set()
+        self._salvage = None
         defs: dict[str, str] = {}
         if ros1:
             self._scan_ros1(defs)
@@ -178,15 +179,28 @@ class BagRecording(Recording):
 
     def _scan_ros1(self, defs: dict[str, str]) -> None:
         from rosbags.rosbag1 import Reader, ReaderError
+
+        from .ros1_salvage import Salvage, scan
         try:
             with Reader(self.path) as reader:
                 for c in reader.connections:
                     defs[c.msgtype] = c.msgdef.data
                     name, count = self._topics.get(c.topic, (c.msgtype, 0))
                     self._topics[c.topic] = (name, count + c.msgcount)
+            return
         except ReaderError as exc:
-            raise RecordingError(f'{self.path} is not a readable ROS 1 bag ({exc}); a bag cut off before its '
-                                 'index was written can be repaired with `rosbag reindex`') from exc
+            reason = str(exc)
+        # No index (the recorder was killed): read the records from the start.
+        self._salvage = Salvage()
+        try:
+            for _ in scan(self.path, self._salvage, with_messages=False):
+                pass
+        except (ValueError, OSError, struct.error) as exc:
+            raise RecordingError(f'{self.path} is not a readable ROS 1 bag ({reason}; {exc})') from exc
+        for c in self._salvage.connections.values():
+            defs[c.msgtype] = c.msgdef
+            self._topics[c.topic] = (c.msgtype, -1)
+        self._salvage_reason = reason
 
     def _scan_ros2(self, defs: dict[str, str]) -> None:
         from rosbags.rosbag2 import Reader, ReaderError
@@ -221,6 +235,20 @@ class BagRecording(Recording):
         return out
 
     def _raw(self, topics: list[str]) -> Iterator[tuple[str, int, bytes]]:
+        if self._salvage is not None:
+            from .ros1_salvage import Salvage, scan
+            salvage, n = Salvage(), 0
+            for topic, t, data in scan(self.path, salvage):
+                if topic in topics:
+                    n += 1
+                    yield topic, t, data
+            if salvage.cut_at is not None:
+                self.problem('', 0, f'{self.path.name} has no index ({self._salvage_reason}) and is cut off at byte '
+                                    f'{salvage.cut_at} of {salvage.size}: read the {n} messages before the cut')
+            else:
+                self.problem('', 0, f'{self.path.name} has no index ({self._salvage_reason}): read {n} messages '
+                                    'record by record')
+            return
         if self.kind == 'ros1':
             from rosbags.rosbag1 import Reader
             with Reader(self.path) as reader:
@@ -294,7 +322,7 @@ class BagRecording(Recording):
         fields = dict(self.typestore.fielddefs[topic.msgtype][1])
         if fields['angle'][1][0] not in ('float32', 'float64'):
             return 'grad'
-        biggest = 0.0
+        biggest, known = 0.0, len(self.problems)
         for i, (_, _, data) in enumerate(self._raw([topic.name])):
             try:
                 biggest = max(biggest, abs(float(self._decode(data, topic.msgtype).angle)))
@@ -302,6 +330,7 @@ class BagRecording(Recording):
                 pass
             if i >= 500:
                 break
+        del self.problems[known:]  # the import reads these messages again and reports their problems then
         return 'grad' if biggest > 2 * math.pi + 0.01 else 'rad'
 
     def items(self, options: ImportOptions) -> Iterator[Item]:
