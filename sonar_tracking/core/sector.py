@@ -120,12 +120,13 @@ class SectorGeometry:
         return self.ranges()[idx], a[idx, np.arange(self.n_beams)].astype(np.float64)
 
 
-def check_sector(values: np.ndarray, geometry: SectorGeometry) -> np.ndarray:
+def check_sector(values: np.ndarray, geometry: SectorGeometry, coding: str = 'linear_amplitude') -> np.ndarray:
     """The sector's values as an array of the geometry's shape, or SectorError / GeometryError saying
     what is wrong: the one rule of every sector consumer (detector, FLS front end, importer).
 
-    NaN, infinite and negative values are refused (echo intensity is >= 0 in every coding); an
-    all-zero sector is valid (nothing was seen: open water, blanked, below the gain floor).
+    NaN and infinite values are refused, and so are negative ones unless ``coding`` is ``db``
+    (:mod:`sonar_tracking.core.intensity`); an all-zero sector is valid (nothing was seen: open
+    water, blanked, below the gain floor).
     """
     a = np.asarray(values)
     if a.shape != geometry.shape:
@@ -137,7 +138,7 @@ def check_sector(values: np.ndarray, geometry: SectorGeometry) -> np.ndarray:
         bad = ~np.isfinite(a)
         if bad.any():
             raise SectorError(f'sector has {int(bad.sum())} NaN or infinite values')
-    if a.dtype.kind != 'u':
+    if a.dtype.kind != 'u' and coding != 'db':
         negative = a < 0
         if negative.any():
             raise SectorError(f'sector has {int(negative.sum())} negative values; echo intensity is >= 0')

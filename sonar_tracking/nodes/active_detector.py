@@ -71,7 +71,8 @@ class ActiveDetectorNode(SonarNode):
         self.create_service(SetBool, '~/esc/enable', self._srv_enable)
         self.create_service(Trigger, '~/esc/reset', self._srv_reset)
         self.pub_threshold.publish(Float64(data=self.detector.threshold))
-        self.get_logger().info(f'threshold {self.detector.threshold:g}, ESC {"on" if self.detector.enabled else "off"}, '
+        esc = 'on' if self.detector.enabled else 'off'
+        self.get_logger().info(f'threshold {self.detector.threshold:g}, ESC {esc}, '
                                f'desired clutter density {self.detector.desired_density:.3g} /m^2')
 
     def on_change(self, old: DetectorNodeConfig, new: DetectorNodeConfig) -> None:

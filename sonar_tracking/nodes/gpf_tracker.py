@@ -26,8 +26,8 @@ Bad input never stops the node: an image of another encoding, one that does not 
 ``image_info``, holding NaN, infinite or negative values (beyond filter round-off, which is
 clipped to 0), a malformed info or region cloud, or a late stamp is logged with its reason and the
 frame dropped. A jump back in time restarts the tracker (a looping recording,
-:mod:`sonar_tracking.ros.timeline`); ids are never reused. An image without any data is no error: tracks are predicted and count the frame as a
-miss, so one empty frame never ends a healthy track.
+:mod:`sonar_tracking.ros.timeline`); ids are never reused. An image without any data is no error:
+tracks are predicted and count the frame as a miss, so one empty frame never ends a healthy track.
 """
 from __future__ import annotations
 
@@ -45,7 +45,8 @@ from msg_adapters.map_info import fls_image, map_info_to_grid
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
-from sonar_tracking.ros import InputConfig, PoseConfig, PoseSource, SonarNode, output_profile, run_node
+from sonar_tracking.ros import (InputConfig, PoseConfig, PoseSource, SonarNode, output_profile,
+                                 run_node)
 
 __all__ = ['GpfNodeConfig', 'GpfTrackerNode', 'main']
 

@@ -5,7 +5,10 @@ import ctypes
 import os
 import signal
 from importlib import resources
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
+
+if TYPE_CHECKING:
+    import rclpy.node
 
 __all__ = ['run_node', 'prepare_process', 'configure_dds', 'private_domain']
 

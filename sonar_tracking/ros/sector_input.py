@@ -84,7 +84,8 @@ class SectorInput:
     def _accept(self, pair: ma.SectorPair) -> None:
         try:
             amplitudes, geometry = ma.sector_from_messages(pair.image, pair.info)
-            check_sector(amplitudes, geometry)
+            intensity = getattr(self.node.config, 'intensity', None)
+            check_sector(amplitudes, geometry, intensity.coding if intensity is not None else 'linear_amplitude')
         except (ma.AdapterError, SectorError) as exc:
             self.node.say('error', f'sector at {pair.stamp_ns / 1e9:.3f} s dropped: {exc}', 'malformed')
             return

@@ -37,5 +37,6 @@ def test_values_rule_refuses_non_echoes_and_accepts_silence():
                        (np.zeros((2, 3), complex), 'dtype')):
         with pytest.raises(SectorError, match=match):
             check_sector(bad, g)
+    assert check_sector(np.full((2, 3), -20.0), g, coding='db').shape == (2, 3)   # dB may be negative
     with pytest.raises(GeometryError, match='geometry says'):
         check_sector(np.zeros((3, 3)), g)

@@ -3,7 +3,6 @@ what the node must survive (an empty image, a frame without regions, bad input),
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -201,7 +200,6 @@ def test_tracks_targets_from_the_simulated_sonar_through_fls_features(ros, launc
                  'shutdown_when_done:=true')
     ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
     ros.wait(lambda: len(tracks) >= 7, 20.0, 'tracks of every frame')
-    time.sleep(0.3)
     for s in subs:
         ros.node.destroy_subscription(s)
     path_xy = np.array([(t['x'], t['y']) for m in truth for t in ma.cloud_to_array(m)])

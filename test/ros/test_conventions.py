@@ -76,8 +76,8 @@ def test_esc_service_and_parameter_agree_and_the_threshold_is_never_stale(ros, i
         sub = ros.node.create_subscription(Float64, '/detector/threshold', late.append,
                                            QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         ros.wait(lambda: late, 20.0, 'the latched threshold')
-        assert len(late) == 1 and late[0].data == pytest.approx(node.diag.values and float(node.diag.values['threshold']),
-                                                                 abs=1e-4)
+        applied = float(node.diag.values['threshold'])
+        assert len(late) == 1 and late[0].data == pytest.approx(applied, abs=1e-4)
         ros.node.destroy_subscription(sub)
     finally:
         ros.node.destroy_publisher(pub_img)

@@ -18,7 +18,8 @@ def test_pairer_completes_frames_of_any_parts_and_gives_up_older_ones():
     p = StampPairer(('image', 'info', 'regions'), max_pending=2)
     assert p.add('image', 1, 'i1') is None and p.add('info', 1, 'n1') is None
     assert p.add('image', 2, 'i2') is None
-    assert p.add('info', 2, 'n2') is None and p.add('regions', 2, 'r2') == {'image': 'i2', 'info': 'n2', 'regions': 'r2'}
+    assert p.add('info', 2, 'n2') is None
+    assert p.add('regions', 2, 'r2') == {'image': 'i2', 'info': 'n2', 'regions': 'r2'}
     assert p.pop_dropped() == [(1, ('image', 'info'))]        # stamp 1 can no longer complete
     assert p.missing(('image', 'info')) == ('regions',)
     for s in (3, 4, 5):
