@@ -71,8 +71,9 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--beam-frame', choices=('auto', 'message', 'rep103'), help='ProjectedSonarImage beam frame')
     p.add_argument('--image-layout', choices=('range_major', 'beam_major'), help='ProjectedSonarImage data order')
     p.add_argument('--speed-of-sound', type=float, help='m/s, for pings with a sample period (default 1500)')
-    p.add_argument('--intensity', choices=('keep', 'linear_amplitude', 'linear_power', 'db', 'display'),
-                   help='keep the recorded values (default) or decode them to linear amplitude with this coding')
+    p.add_argument('--intensity', choices=('keep', 'linear', 'linear_amplitude', 'linear_power', 'db', 'display'),
+                   help='keep the recorded values (default) or decode them to linear amplitude with this coding '
+                   '(linear = linear_amplitude)')
     p.add_argument('--db-span', type=float, help='db coding: dB spanned by the full count range (default 60)')
     p.add_argument('--gamma', type=float, help='display coding: amplitude = (value / full scale)^gamma')
     p.add_argument('--noise-floor', type=float, help='decoded amplitudes at or below this become 0')
@@ -102,7 +103,7 @@ def options_from_args(args: argparse.Namespace):
     if args.intensity is not None:
         flat['decode'] = args.intensity != 'keep'
         if args.intensity != 'keep':
-            flat['intensity.coding'] = args.intensity
+            flat['intensity.coding'] = 'linear_amplitude' if args.intensity == 'linear' else args.intensity
     return ImportOptions.from_flat(flat)
 
 
