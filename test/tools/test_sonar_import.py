@@ -470,8 +470,9 @@ def test_ros1_bag_without_index_imports_up_to_the_cut(tmp_path, capsys, chunk_by
 
 
 def test_bad_messages_are_reported_and_the_rest_imported(tmp_path, capsys):
-    """Pings with missing samples, a time gap, missing pings, an undecodable message and a topic
-    of unknown type: each named with topic and stamp, everything else imported, exit code 1."""
+    """Pings with missing samples, a time gap, missing pings, a ping recorded twice, an undecodable
+    message and a topic of unknown type: each named with topic and stamp, everything else imported
+    once, exit code 1."""
     ts = typestore(False, {'ping_test/msg/SonarEcho': ECHO_DEF})
     out = BagOut(tmp_path / 'in', False, ts)
     out.conns['/mystery'] = out.w.add_connection('/mystery', 'nobody_msgs/msg/Thing', msgdef='',
@@ -489,6 +490,8 @@ def test_bad_messages_are_reported_and_the_rest_imported(tmp_path, capsys):
                   range=int(N_BINS * BIN), intensities=s)
         out.write('/ping360/echo', 'ping_test/msg/SonarEcho', msg, t)
         pings.append((t, float(b)))
+        if k == 50:
+            out.write('/ping360/echo', 'ping_test/msg/SonarEcho', msg, t + 3)  # recorded twice
         if k == 20:
             out.write_raw('/ping360/echo', b'\x00\x01\x00\x00\x07', t + 1)   # not a SonarEcho
             out.write_raw('/mystery', b'\x00\x01\x00\x00', t + 2)
@@ -501,6 +504,7 @@ def test_bad_messages_are_reported_and_the_rest_imported(tmp_path, capsys):
     assert f'/ping360/echo @ {stamp(pings[45][0])}: 5.000 s since the previous ping' in err
     assert f'/ping360/echo @ {stamp(pings[20][0] + 1)}: message cannot be decoded' in err
     assert '/mystery' in err and 'type unknown' in err
+    assert f'/ping360/echo @ {stamp(pings[50][0])}: the same ping again' in err
     sectors, _ = read_output(tmp_path / 'out')
     assert_every_ping_once(sectors, pings)
     # The short ping's column holds its 150 samples and 50 zeros (nothing measured) beyond them.

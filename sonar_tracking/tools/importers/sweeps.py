@@ -10,7 +10,8 @@ beams in increasing bearing (counter-clockwise from x, REP-103):
   exceeds ``max_gap``; the pings of a sweep are held until it ends (at most one turn), and the
   last, partial sweep is returned by :meth:`SweepAssembler.finish`;
 * a sweep is cut into sectors of ``pings_per_sector`` pings (0 = one sector per sweep); every ping
-  is in exactly one sector;
+  is in exactly one sector, except a message recorded twice (same stamp, bearing and samples),
+  which is dropped and reported;
 * a sector swept toward decreasing bearing has its columns reversed: column 0 was pinged last, its
   stamp is that ping's and ``ping_period`` is negative (the LaserScan ``time_increment`` rule);
   otherwise the stamp is the first ping's and the period positive;
@@ -93,6 +94,7 @@ class SweepAssembler:
         self.problems: list[Problem] = []
         self.pings_in = 0
         self.pings_out = 0
+        self.dropped = 0
         self._sweep = _Sweep()
         self._last_direction = 1
         self._last_period = 0.0
@@ -103,6 +105,10 @@ class SweepAssembler:
         ping = self._fill(ping)
         sweep = self._sweep
         out: list[Sector] = []
+        if sweep.pings and self._repeats(sweep.pings[-1], ping):
+            self.dropped += 1
+            self.problems.append(Problem(ping.stamp_ns, 'the same ping again (stamp, bearing and samples): dropped'))
+            return out
         if sweep.pings and (not self._continues(sweep, ping) or self._turned(sweep, ping)):
             out = self._flush()
             sweep = self._sweep
@@ -131,6 +137,11 @@ class SweepAssembler:
             padded[:n] = ping.samples
             ping.samples = padded
         return ping
+
+    @staticmethod
+    def _repeats(last: Ping, ping: Ping) -> bool:
+        return (ping.stamp_ns == last.stamp_ns and ping.bearing == last.bearing
+                and np.array_equal(ping.samples, last.samples))
 
     @staticmethod
     def _turned(sweep: _Sweep, ping: Ping) -> bool:
