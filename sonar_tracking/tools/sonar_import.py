@@ -58,7 +58,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--preset', help='sensor preset (config/sensors/NAME.yaml or a path): importer settings; '
                    'options given here override it')
     p.add_argument('--topic', help='sonar topic in the source bag (default: the one recognised)')
-    p.add_argument('--odometry-topic', help='nav_msgs/Odometry topic (default: the only one; "none" = skip)')
+    p.add_argument('--odometry-topic', help='nav_msgs/Odometry topic (default: the only one; "none" = skip), or a '
+                   'PoseStamped / PoseWithCovarianceStamped topic to use as the platform pose')
     p.add_argument('--pings', type=int, help='pings per sector (default 0 = one sector per sweep)')
     p.add_argument('--max-gap', type=float, help='seconds between pings that end a sweep (default 2)')
     head = p.add_mutually_exclusive_group()
@@ -154,7 +155,8 @@ def main(argv: list[str] | None = None) -> int:
         for t in topics:
             what = {'scanline': 'scanning sonar scan lines -> sectors', 'echo': 'scanning sonar echoes -> sectors',
                     'projected': 'imaging sonar frames -> one sector each',
-                    'odometry': f'odometry -> /platform/odometry'}.get(t.role, t.note or 'not used')
+                    'odometry': 'odometry -> /platform/odometry',
+                    'pose': 'pose -> /platform/odometry if named by --odometry-topic'}.get(t.role, t.note or 'not used')
             count = '?' if t.count < 0 else t.count
             print(f'  {t.name:30s} {t.msgtype:45s} {count!s:>7} msgs  {what}')
     for t in topics:

@@ -250,6 +250,34 @@ def test_scanning_sonar_bag(tmp_path, kind, mode, clockwise, ros1):
     check_target(sectors, poses)
 
 
+def test_pose_stamped_as_platform_pose(tmp_path, capsys):
+    """A PoseStamped topic named by --odometry-topic gives /platform/odometry; unnamed, it is only listed."""
+    ts = typestore(True, {'ping_test/msg/SonarEcho': ECHO_DEF})
+    out = BagOut(tmp_path / 'in.bag', True, ts)
+    rng = np.random.default_rng(12)
+    x, y, yaw = POSE
+    pings = []
+    for k, b in enumerate(head_bearings('continuous')):
+        ns = T0 + k * PERIOD_NS
+        msg = new(ts, 'ping_test/msg/SonarEcho', header=header(ts, ns, True), angle=float(b), number_of_samples=N_BINS,
+                  range=int(N_BINS * BIN), intensities=ping_samples(b, rng))
+        out.write('/echo', 'ping_test/msg/SonarEcho', msg, ns)
+        pings.append((ns, float(b)))
+        if k % 10 == 0:
+            pose = odometry(ts, ns, True).pose.pose
+            out.write('/nav/pose', 'geometry_msgs/msg/PoseStamped',
+                      new(ts, 'geometry_msgs/msg/PoseStamped', header=header(ts, ns, True), pose=pose), ns)
+    out.close()
+    assert run(tmp_path / 'in.bag', '--inspect') == 0
+    assert 'pose -> /platform/odometry if named' in capsys.readouterr().out
+    assert run(tmp_path / 'in.bag', '-o', tmp_path / 'out', '--odometry-topic', '/nav/pose', '--intensity', 'db') == 0
+    sectors, poses = read_output(tmp_path / 'out')
+    assert len(poses) == math.ceil(len(pings) / 10)
+    assert all(np.allclose(p, POSE) for _, p in poses)
+    assert_every_ping_once(sectors, pings)
+    check_target(sectors, poses)
+
+
 def test_pings_per_sector_and_kept_counts(tmp_path):
     pings = write_scanning(tmp_path / 'in', 'echo_rad', 'sector', False, ros1=False, seed=2)
     assert run(tmp_path / 'in', '-o', tmp_path / 'out', '--pings', 16) == 0

@@ -73,8 +73,17 @@ class SectorBagWriter:
         self._write(INFO_TOPIC, 'sensor_msgs/msg/LaserScan', scan, log_ns)
 
     def odometry(self, msg: Any, log_ns: int) -> None:
-        """An Odometry of the recording (ROS 1 or ROS 2), copied field by field into the ROS 2 type."""
-        self._write(ODOMETRY_TOPIC, 'nav_msgs/msg/Odometry', self._copy(msg, 'nav_msgs/msg/Odometry'), log_ns)
+        """An Odometry of the recording (ROS 1 or ROS 2), copied field by field into the ROS 2 type; a
+        PoseStamped or PoseWithCovarianceStamped becomes an Odometry with that pose and no twist."""
+        if hasattr(msg, 'twist'):
+            odo = self._copy(msg, 'nav_msgs/msg/Odometry')
+        else:
+            pose = getattr(msg.pose, 'pose', msg.pose)
+            cov = np.asarray(getattr(msg.pose, 'covariance', np.zeros(36)), dtype=np.float64)
+            odo = self.types.new('nav_msgs/msg/Odometry', header=self._copy(msg.header, 'std_msgs/msg/Header'),
+                                 pose=self.types.new('geometry_msgs/msg/PoseWithCovariance',
+                                                     pose=self._copy(pose, 'geometry_msgs/msg/Pose'), covariance=cov))
+        self._write(ODOMETRY_TOPIC, 'nav_msgs/msg/Odometry', odo, log_ns)
 
     def _copy(self, src: Any, msgtype: str) -> Any:
         _, defs = self.typestore.fielddefs[msgtype]

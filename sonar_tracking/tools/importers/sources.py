@@ -81,7 +81,8 @@ class TopicInfo:
 
 
 def classify(typestore: Any, msgtype: str) -> str:
-    """The role of a message type by its fields: 'scanline', 'echo', 'projected', 'odometry' or ''."""
+    """The role of a message type by its fields: 'scanline', 'echo', 'projected', 'odometry', 'pose'
+    (a PoseStamped or PoseWithCovarianceStamped, imported only when named) or ''."""
     if msgtype not in typestore.fielddefs:
         return ''
     names = {name for name, _ in typestore.fielddefs[msgtype][1]}
@@ -93,6 +94,8 @@ def classify(typestore: Any, msgtype: str) -> str:
         return 'echo'
     if msgtype.endswith('/Odometry') and {'pose', 'twist'} <= names:
         return 'odometry'
+    if msgtype.endswith(('/PoseStamped', '/PoseWithCovarianceStamped')) and {'header', 'pose'} <= names:
+        return 'pose'
     return ''
 
 
@@ -304,9 +307,10 @@ class BagRecording(Recording):
             return ''
         odo = [t.name for t in self.topics() if t.role == 'odometry']
         if options.odometry_topic:
-            if options.odometry_topic not in odo:
-                raise RecordingError(f'odometry topic {options.odometry_topic} is not a nav_msgs/Odometry topic '
-                                     f'of {self.path} (those are {odo})')
+            poses = [t.name for t in self.topics() if t.role == 'pose']
+            if options.odometry_topic not in odo + poses:
+                raise RecordingError(f'odometry topic {options.odometry_topic} is not an Odometry, PoseStamped or '
+                                     f'PoseWithCovarianceStamped topic of {self.path} (those are {odo + poses})')
             return options.odometry_topic
         if len(odo) > 1:
             self.problem('', 0, f'several odometry topics {odo}: none imported; choose one with --odometry-topic')
