@@ -16,6 +16,7 @@ CONSOLE_SCRIPTS = [
     'projected_sonar_adapter = sonar_tracking.nodes.projected_sonar_adapter:main',
     'sonar_eval = sonar_tracking.tools.sonar_eval:main',
     'sonar_stack = sonar_tracking.tools.sonar_stack:main',
+    'sonar_echo = sonar_tracking.tools.sonar_echo:main',
     'bag_record = sonar_tracking.tools.bag_record:main',
     'bag_replay = sonar_tracking.tools.bag_replay:main',
     'sonar_import = sonar_tracking.tools.sonar_import:main',

@@ -73,7 +73,10 @@ class Harness:
                                                    stamp_ns=ns, frame_id='world'))
 
     def wait_tracks(self, n, timeout=30.0):
-        self.ros.wait(lambda: len(self.tracks) >= n, timeout, f'{n} /gpf/tracks messages')
+        try:
+            self.ros.wait(lambda: len(self.tracks) >= n, timeout, f'{n} /gpf/tracks messages')
+        except AssertionError as exc:
+            raise AssertionError(f'{exc}; got {len(self.tracks)}; the node said: {self.stop()[-3000:]}') from None
 
     def stop(self) -> str:
         """SIGINT the node; its stderr (the log)."""
