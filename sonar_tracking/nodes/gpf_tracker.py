@@ -66,12 +66,10 @@ class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig, TrackOutputConfig):
 class GpfTrackerNode(SonarNode):
     """Runs a :class:`~sonar_tracking.core.gpf.GpfTracker` on FLS frames."""
 
-    READ_ONLY = {'world_frame', 'seed', 'max_pending', 'input_qos'}
     PARTS = ('image', 'info', 'regions')
 
     def __init__(self, **kwargs) -> None:
-        mutable = {s.name for s in GpfNodeConfig.settings()} - self.READ_ONLY
-        super().__init__('gpf_tracker', GpfNodeConfig(), 'gpf_tracker: tracking', mutable=mutable, **kwargs)
+        super().__init__('gpf_tracker', GpfNodeConfig(), 'gpf_tracker: tracking', **kwargs)
         self.tracker = GpfTracker(self.config, np.random.default_rng(self.config.seed),
                                   feature_config=self.config.features)
         self.frames = ma.StampPairer(self.PARTS, self.config.max_pending)
