@@ -27,14 +27,6 @@ def test_the_four_sensor_families_have_presets():
     assert {p.stem for p in PRESETS} == {'micron_seaking', 'ping360', 'oculus_m750d', 'aris_didson'}
 
 
-def _pending_intensity(cls, params: dict) -> set[str]:
-    """``intensity.*`` names, tolerated only while the node's config has no intensity group yet."""
-    known = {s.name for s in cls.settings()}
-    if any(n.startswith('intensity.') for n in known):
-        return set()
-    return {n for n in params if n.startswith('intensity.')}
-
-
 @pytest.mark.parametrize('path', PRESETS, ids=lambda p: p.stem)
 def test_preset_names_real_settings(path):
     data = yaml.safe_load(path.read_text())
@@ -46,16 +38,11 @@ def test_preset_names_real_settings(path):
             continue
         cls = NODES[node]
         params = dict(section['ros__parameters'])
-        pending = _pending_intensity(cls, params)
-        checked = {k: v for k, v in params.items() if k not in pending}
         known = {s.name for s in cls.settings()}
-        assert not set(checked) - known, f'{node}: unknown parameters {sorted(set(checked) - known)}'
-        flat = cls.from_flat(checked).flat()
-        for name, value in checked.items():
+        assert not set(params) - known, f'{node}: unknown parameters {sorted(set(params) - known)}'
+        flat = cls.from_flat(params).flat()
+        for name, value in params.items():
             assert flat[name] == (tuple(value) if isinstance(value, list) else value), name
-        if pending:  # the intensity group is checked against core.intensity until the nodes have it
-            from sonar_tracking.core.intensity import IntensityConfig
-            IntensityConfig.from_flat({k.split('.', 1)[1]: v for k, v in params.items() if k in pending})
 
 
 @pytest.mark.parametrize('path', PRESETS, ids=lambda p: p.stem)
