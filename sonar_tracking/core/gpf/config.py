@@ -164,6 +164,10 @@ class LostConfig(Config):
                               'echoes)', unit='s', low=0.0, high=1e6)
     tentative_time: float = setting(6.0, 'a tentative track ends after this long without seeing its target '
                                     '(0: at its first miss)', unit='s', low=0.0, high=1e6)
+    outside_time: float = setting(2.0, 'a track ends once its estimate has been outside the sonar\'s coverage (no '
+                                  'pixel with data in its window: outside the fan or the image) this long (ours: '
+                                  'two 5 s tank frames, or 2 s of a 10 Hz imaging sonar; 0: at the first such '
+                                  'frame)', unit='s', low=0.0, high=1e6)
 
 
 @dataclass(frozen=True)
