@@ -63,6 +63,10 @@ class CueConfig(Config):
     window: float = setting(0.7, 'side of the square window around a particle whose features it gets (ours; '
                             'rounded to an odd number of pixels, at least 3)', unit='m', low=0.0, high=20.0,
                             low_open=True)
+    pixel: float = setting(0.1, 'window features are measured on the image block-averaged to the coarsest pixel '
+                           'not larger than this (ours: the cue scales were calibrated on 0.1 m pixels, and the '
+                           'work per particle grows with the window\'s area in pixels); 0 = the image\'s own '
+                           'pixels', unit='m', low=0.0, high=20.0)
     alpha: float = setting(1.0, 'likelihood-function noise alpha of eq. (13); the distance control '
                            'coefficients beta_i are 1/sigma_i^2 of each feature (sonar_tracking.core.gpf.cues)',
                            low=0.0, high=100.0, low_open=True)

@@ -65,7 +65,7 @@ from ..fls.features import FEATURE_LABELS, FeatureConfig
 from ..fls.grid import ImageGrid
 from ..fls.windows import WindowImage
 
-__all__ = ['CueSpec', 'CUE_SPECS', 'CueModel', 'window_pixels', 'pixel_index', 'MAX_WINDOW']
+__all__ = ['CueSpec', 'CUE_SPECS', 'CueModel', 'window_pixels', 'pixel_index', 'coarsening', 'coarsen', 'MAX_WINDOW']
 
 #: Largest window side in pixels (a coarse image gets at least 3, a fine one at most this: the work
 #: per particle grows with the window's area).
@@ -122,6 +122,31 @@ def window_pixels(window: float, resolution: float, largest: int | None = MAX_WI
         n = n + 1 if ratio >= n else n - 1
     n = max(n, 3)
     return int(n if largest is None else min(n, largest))
+
+
+def coarsening(pixel: float, resolution: float) -> int:
+    """The block size (pixels per side) that averages an image of ``resolution`` to the coarsest
+    pixel not larger than ``pixel`` metres (1: the image as it is; ``pixel`` 0: always 1)."""
+    if pixel <= 0.0:
+        return 1
+    return max(1, int(math.floor(pixel / resolution + 1e-9)))
+
+
+def coarsen(image: np.ndarray, valid: np.ndarray, grid: ImageGrid, factor: int) -> tuple[np.ndarray, ImageGrid]:
+    """The image averaged over blocks of ``factor x factor`` pixels, each block the mean of its
+    ``valid`` pixels (0 = no data where none is), and the grid of the blocks (same origin)."""
+    h, w = image.shape
+    hc, wc = -(-h // factor), -(-w // factor)
+    sums = np.zeros((hc * factor, wc * factor))
+    counts = np.zeros((hc * factor, wc * factor))
+    sums[:h, :w] = np.where(valid, image, 0.0)
+    counts[:h, :w] = valid
+    sums = sums.reshape(hc, factor, wc, factor).sum(axis=(1, 3))
+    counts = counts.reshape(hc, factor, wc, factor).sum(axis=(1, 3))
+    out = np.divide(sums, counts, out=np.zeros_like(sums), where=counts > 0)
+    coarse = ImageGrid(resolution=grid.resolution * factor, width=wc, height=hc, origin_x=grid.origin_x,
+                       origin_y=grid.origin_y, origin_yaw=grid.origin_yaw)
+    return out, coarse
 
 
 def pixel_index(fractional: np.ndarray) -> np.ndarray:

@@ -20,8 +20,12 @@ gives the same tracks as updating each track on its own.
 
 The image is checked (:func:`check_image`): negative pixels are refused, except round-off of the
 image filters (down to ``NEGATIVE_TOLERANCE`` times the image's largest magnitude), which reads as
-0. The cue window is ``cues.window`` in the frame's pixels (:func:`.cues.window_pixels`), at most
-:data:`.cues.MAX_WINDOW` pixels on a very fine image (reported in :class:`StepReport`).
+0. Window features are measured on the image block-averaged to the coarsest pixel not larger than
+``cues.pixel`` (:func:`.cues.coarsen`; 0.1 m, the pixel the cue scales were calibrated on: a
+0.1 m image is used as it is, a 0.025 m one in blocks of 4 x 4), so the window of ``cues.window``
+metres keeps about the same number of pixels (:func:`.cues.window_pixels`) and the work per
+particle stays bounded however fine the image; the window is capped at :data:`.cues.MAX_WINDOW`
+pixels (with ``cues.pixel`` 0 on a very fine image; reported in :class:`StepReport`).
 
 ``method='sir'`` runs the SIR particle filter baseline (:mod:`.sir`) with exactly the same cues,
 fusion, births and management, so the two differ only in the filter. An image without any data
@@ -42,7 +46,7 @@ from ..fls.windows import WindowImage
 from ..records import GPF_TRACK_DTYPE
 from . import sir
 from .config import GpfConfig
-from .cues import MAX_WINDOW, CueModel, pixel_index, window_pixels
+from .cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
 from .fusion import MF, WF, fuse, normalise_log, second_target
 from .gaussian import condition_velocity, floor_position, kalman_update, predict, sample_gaussian, weighted_moments
 from .management import (birth_covariance, blend_template, left_coverage, reseed_pairs, should_end, spaced,
@@ -97,6 +101,7 @@ class StepReport:
     ended_outside: int = 0
     window_pixels: int = 0
     window_capped: bool = False
+    cue_pixel: float = math.nan
     empty_image: bool = False
     reset: str = ''
     seconds: dict[str, float] = field(default_factory=dict)
@@ -210,9 +215,9 @@ class GpfTracker:
         frame = self.prepare(img, grid)
         rep.empty_image = frame.empty
         wi = frame.windows
-        rep.window_pixels = frame.window
-        rep.window_capped = frame.window == MAX_WINDOW and window_pixels(self.config.cues.window, grid.resolution,
-                                                                          None) > MAX_WINDOW
+        rep.window_pixels, rep.cue_pixel = frame.window, frame.grid.resolution
+        rep.window_capped = frame.window == MAX_WINDOW and window_pixels(self.config.cues.window,
+                                                                          frame.grid.resolution, None) > MAX_WINDOW
         predicted = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)   # before any update
         for tr in self.tracks:
             tr.stamp = float(stamp)
@@ -224,11 +229,11 @@ class GpfTracker:
         covs = birth_covariance(xy, self.config.birth, sensor_xy)
         if wi is not None:
             rep.reseeded = self._reseed(xy, covs)
-        self._templates(wi, grid)
+        self._templates(wi)
         rep.outside = self._coverage(frame)
         rep.ended, rep.ended_outside = self._end()
         if wi is not None:
-            rep.born = self._births(xy, covs, wi, grid)
+            rep.born = self._births(xy, covs, frame)
         for tr in self.tracks:
             if not tr.confirmed and tr.hits >= self.config.birth.confirm_hits:
                 tr.confirmed = True
@@ -246,14 +251,20 @@ class GpfTracker:
 
     # -- per frame and per track -----------------------------------------------------------------
     def prepare(self, image: np.ndarray, grid: ImageGrid) -> Frame:
-        """The frame's image ready for every track's update: padded for window lookups, and its
-        background features (the median window, :meth:`.cues.CueModel.background`)."""
+        """The frame's image ready for every track's update: block-averaged to the cues' pixel
+        (module docstring), padded for window lookups, and its background features (the median
+        window, :meth:`.cues.CueModel.background`). The frame's grid is that of the cues' pixels."""
         img = check_image(image, grid)
-        n = window_pixels(self.config.cues.window, grid.resolution)
         valid = np.isfinite(img) & (img > 0)
+        img = np.where(valid, img, 0.0)
+        factor = coarsening(self.config.cues.pixel, grid.resolution)
+        if factor > 1:
+            img, grid = coarsen(img, valid, grid, factor)
+            valid = img > 0
+        n = window_pixels(self.config.cues.window, grid.resolution)
         if not valid.any():
             return Frame(grid, None, None, n)
-        wi = WindowImage(np.where(valid, img, 0.0), self.feature_config, n)
+        wi = WindowImage(img, self.feature_config, n)
         return Frame(grid, wi, self.cues.background(wi, grid, valid), n)
 
     def predict_track(self, tr: GpfTrack, dt: float) -> None:
@@ -345,7 +356,7 @@ class GpfTracker:
             tr.particles = sir.spread(tr.particles, tr.weights, self.config.lost.inflation, tr.cov)
 
     # -- management -----------------------------------------------------------------------------
-    def _templates(self, wi: WindowImage | None, grid: ImageGrid) -> None:
+    def _templates(self, wi: WindowImage | None) -> None:
         if wi is None or not self.tracks:
             return
         positions = np.array([tr.mean[:2] for tr in self.tracks])
@@ -418,7 +429,7 @@ class GpfTracker:
                 tr.weights = np.full(self.config.particles, 1.0 / self.config.particles)
         return len(pairs)
 
-    def _births(self, xy: np.ndarray, covs: np.ndarray, wi: WindowImage, grid: ImageGrid) -> int:
+    def _births(self, xy: np.ndarray, covs: np.ndarray, frame: Frame) -> int:
         c = self.config.birth
         if len(xy) == 0:
             return 0
@@ -430,7 +441,7 @@ class GpfTracker:
         free = free[:room]
         if free.size == 0:
             return 0
-        templates = self.cues.values(wi, grid, xy[free], window_pixels(self.config.cues.window, grid.resolution))
+        templates = self.cues.values(frame.windows, frame.grid, xy[free], frame.window)
         for j, i in enumerate(free):
             mean = np.array([xy[i, 0], xy[i, 1], 0.0, 0.0])
             tr = GpfTrack(track_id=self.next_id, mean=mean, cov=covs[i], template=templates[:, j],

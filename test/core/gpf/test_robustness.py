@@ -10,7 +10,7 @@ import pytest
 from sonar_tracking.core.fls import ImageGrid
 from sonar_tracking.core.fls.windows import WindowImage
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
-from sonar_tracking.core.gpf.cues import MAX_WINDOW, window_pixels
+from sonar_tracking.core.gpf.cues import MAX_WINDOW, coarsen, coarsening
 from sonar_tracking.core.gpf.tracker import check_image
 from sonar_tracking.core.records import REGION_DTYPE
 
@@ -56,23 +56,40 @@ def regions(*points) -> np.ndarray:
     return rec
 
 
-@pytest.mark.parametrize('resolution', [0.025, 0.02, 0.005])
-def test_fine_images_track_up_to_and_beyond_the_edge_without_failing(resolution):
-    # Regressions: at 0.025 m the 29-pixel window of a particle at the image's edge indexed past the
-    # padded image (IndexError); at 0.02 m (35 pixels, more than the 31 the window image was built
-    # for) every frame failed. At 0.005 m the window is capped at MAX_WINDOW pixels, and says so.
+@pytest.mark.parametrize('resolution,pixel,window,capped', [
+    (0.025, 0.0, 29, False), (0.02, 0.0, 35, False), (0.005, 0.0, MAX_WINDOW, True),
+    (0.025, 0.1, 7, False), (0.02, 0.1, 7, False), (0.03, 0.1, 7, False)])
+def test_fine_images_track_up_to_and_beyond_the_edge_without_failing(resolution, pixel, window, capped):
+    # Regressions: on its own 0.025 m pixels the 29-pixel window of a particle at the image's edge
+    # indexed past the padded image (IndexError); on 0.02 m pixels (35, more than the 31 the window
+    # image was built for) every frame failed. On 0.005 m pixels the window is capped at MAX_WINDOW
+    # pixels, and says so. By default (cues.pixel 0.1 m) fine images are block-averaged to about
+    # 0.1 m, where the window has 7 pixels.
     grid = ImageGrid(resolution=resolution, width=int(round(4.0 / resolution)), height=int(round(3.0 / resolution)),
                      origin_x=0.0, origin_y=-1.5)
     rng = np.random.default_rng(1)
-    tracker = GpfTracker(GpfConfig.from_flat({'particles': 100}), np.random.default_rng(2))
+    tracker = GpfTracker(GpfConfig.from_flat({'particles': 100, 'cues.pixel': pixel}), np.random.default_rng(2))
     for k in range(8):
-        p = (1.0 + 0.5 * k, 0.0)                # leaves the image (x up to 4 m) at frame 6
+        p = (1.0 + 0.4 * k, 0.0)                # leaves the image (x up to 4 m) at frame 8
         tracker.step(5.0 * k, scene(grid, rng, [p]), grid, regions(p), (0.0, 0.0, 0.0))
         for tr in tracker.tracks:
             assert np.isfinite(tr.mean).all() and np.isfinite(tr.cov).all()
-    n = min(window_pixels(0.7, resolution, None), MAX_WINDOW)
-    assert tracker.report.window_pixels == n
-    assert tracker.report.window_capped == (resolution == 0.005)
+        if k <= 5:
+            assert len(tracker.tracks) == 1 and np.hypot(*(tracker.tracks[0].mean[:2] - p)) < 0.5
+    assert tracker.report.window_pixels == window and tracker.report.window_capped == capped
+    assert tracker.report.cue_pixel == pytest.approx(resolution * coarsening(pixel, resolution))
+
+
+def test_coarsening_averages_the_pixels_with_data():
+    grid = ImageGrid(resolution=0.05, width=5, height=3, origin_x=1.0, origin_y=2.0, origin_yaw=0.3)
+    img = np.arange(15.0).reshape(3, 5)
+    img[0, 0] = 0.0
+    out, coarse = coarsen(img, img > 0, grid, 2)
+    np.testing.assert_allclose(out, [[(1 + 5 + 6) / 3, (2 + 3 + 7 + 8) / 4, (4 + 9) / 2], [(10 + 11) / 2, 12.5, 14.0]])
+    assert (coarse.width, coarse.height, coarse.resolution) == (3, 2, 0.1)
+    np.testing.assert_allclose(coarse.pixel_to_point(0, 0), grid.pixel_to_point(0.5, 0.5))
+    assert [coarsening(0.1, r) for r in (0.1, 0.07, 0.05, 0.0333, 0.2)] == [1, 1, 2, 3, 1]
+    assert coarsening(0.0, 0.01) == 1
 
 
 def test_round_off_negatives_read_as_zero_and_real_negatives_are_refused():
