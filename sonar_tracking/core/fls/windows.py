@@ -17,8 +17,9 @@ the time, because a full box makes most of the general computation unnecessary:
 * the moments of eq. (1) (f14-f20) are weighted sums over the box, a few small products per
   window, with Hu's invariants from :func:`~.features.hu_moments`;
 * the co-occurrence counts (f21-f30) of a full box count all pixel pairs of the box in the four
-  directions: one ``bincount`` for all windows, grey levels from :func:`~.features.quantise` and
-  the statistics from :func:`~.features.glcm_features`.
+  directions: one ``bincount`` for all windows, grey levels from :func:`~.features.quantise` (of
+  the whole image once, at the first window that needs them) and the statistics from
+  :func:`~.features.glcm_features`.
 
 The image is padded once in :class:`WindowImage`; each call then gathers the patches by flat
 index into arrays kept between calls, :data:`CHUNK` windows at a time (so they stay in the cache).
@@ -43,7 +44,7 @@ from .features import (_DIRECTIONS, _GROUPS, N_FEATURES, FeatureConfig, _wanted,
 __all__ = ['WindowImage', 'window_features', 'WINDOW_SHAPE_FEATURES', 'CHUNK']
 
 #: Windows gathered and computed together: larger batches spill out of the cache and run slower.
-CHUNK = 256
+CHUNK = 1024
 
 #: Features fixed by the mask alone: the same for every window of one size.
 WINDOW_SHAPE_FEATURES = frozenset({1, 2, 5, 10, 11, 12, 13})
@@ -83,6 +84,7 @@ class WindowImage:
         self._shape_rows: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
         self._buffers: dict[str, np.ndarray] = {}
         self._thresholds: np.ndarray | None = None
+        self._levels: np.ndarray | None = None
 
     def _offsets_of(self, size: int) -> np.ndarray:
         off = self._offsets.get(size)
@@ -248,7 +250,11 @@ class WindowImage:
         if glcm_cols:
             s = self.config.glcm_levels
             d = self.config.glcm_distance
-            q = self._levels_of(box)
+            if self._levels is None:     # grey levels of the whole padded image, once
+                self._levels = self._levels_of(self._values).copy()
+            q = self._buffer('q', idx.shape, self._levels.dtype)
+            np.take(self._levels, idx, out=q)
+            q = q.reshape(k, m, m)[:, 1:-1, 1:-1]
             # Code of a pair (a, b) of window j: (j S + a) S + b; the first factor once per pixel.
             first = self._buffer('first', q.shape, np.intp)
             first[...] = q

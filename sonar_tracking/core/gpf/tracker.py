@@ -212,7 +212,7 @@ class GpfTracker:
         for tr in self.tracks:
             self.predict_track(tr, dt)
         t1 = time.perf_counter()
-        frame = self.prepare(img, grid)
+        frame = self._prepare(img, grid)
         rep.empty_image = frame.empty
         wi = frame.windows
         rep.window_pixels, rep.cue_pixel = frame.window, frame.grid.resolution
@@ -254,7 +254,9 @@ class GpfTracker:
         """The frame's image ready for every track's update: block-averaged to the cues' pixel
         (module docstring), padded for window lookups, and its background features (the median
         window, :meth:`.cues.CueModel.background`). The frame's grid is that of the cues' pixels."""
-        img = check_image(image, grid)
+        return self._prepare(check_image(image, grid), grid)
+
+    def _prepare(self, img: np.ndarray, grid: ImageGrid) -> Frame:
         valid = np.isfinite(img) & (img > 0)
         img = np.where(valid, img, 0.0)
         factor = coarsening(self.config.cues.pixel, grid.resolution)
@@ -315,7 +317,7 @@ class GpfTracker:
         for i, tr in enumerate(tracks):
             p = particles[i]
             d2 = self.cues.distances2(values[:, i * k:(i + 1) * k], tr.template)
-            crowded = f.switch == 'crossing' and second_target(tr.mean, tr.cov, others[i], f.gate)
+            crowded = f.mode == 'af' and f.switch == 'crossing' and second_target(tr.mean, tr.cov, others[i], f.gate)
             fused = fuse(self.cues.log_likelihoods(d2), p[:, :2], self.thresholds, f.mode, crowded)
             if self.method == 'sir':
                 w = normalise_log(np.log(tr.weights) + fused.log_likelihood)
