@@ -136,14 +136,11 @@ def coarsen(image: np.ndarray, valid: np.ndarray, grid: ImageGrid, factor: int) 
     """The image averaged over blocks of ``factor x factor`` pixels, each block the mean of its
     ``valid`` pixels (0 = no data where none is), and the grid of the blocks (same origin)."""
     h, w = image.shape
-    hc, wc = -(-h // factor), -(-w // factor)
-    sums = np.zeros((hc * factor, wc * factor))
-    counts = np.zeros((hc * factor, wc * factor))
-    sums[:h, :w] = np.where(valid, image, 0.0)
-    counts[:h, :w] = valid
-    sums = sums.reshape(hc, factor, wc, factor).sum(axis=(1, 3))
-    counts = counts.reshape(hc, factor, wc, factor).sum(axis=(1, 3))
+    rows, cols = np.arange(0, h, factor), np.arange(0, w, factor)     # block starts; the last may be partial
+    sums = np.add.reduceat(np.add.reduceat(np.where(valid, image, 0.0), cols, axis=1), rows, axis=0)
+    counts = np.add.reduceat(np.add.reduceat(valid.astype(np.float64), cols, axis=1), rows, axis=0)
     out = np.divide(sums, counts, out=np.zeros_like(sums), where=counts > 0)
+    hc, wc = out.shape
     coarse = ImageGrid(resolution=grid.resolution * factor, width=wc, height=hc, origin_x=grid.origin_x,
                        origin_y=grid.origin_y, origin_yaw=grid.origin_yaw)
     return out, coarse

@@ -258,11 +258,12 @@ class GpfTracker:
 
     def _prepare(self, img: np.ndarray, grid: ImageGrid) -> Frame:
         valid = np.isfinite(img) & (img > 0)
-        img = np.where(valid, img, 0.0)
         factor = coarsening(self.config.cues.pixel, grid.resolution)
         if factor > 1:
             img, grid = coarsen(img, valid, grid, factor)
             valid = img > 0
+        else:
+            img = np.where(valid, img, 0.0)
         n = window_pixels(self.config.cues.window, grid.resolution)
         if not valid.any():
             return Frame(grid, None, None, n)

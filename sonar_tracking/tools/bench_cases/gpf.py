@@ -16,7 +16,9 @@ moving at 0.25 m/s, 5 s apart (one sweep), each with its region; built once, bef
   400 x 400 frame of 0.1 m (7-pixel windows); targets on a 3 x 5 lattice 3 m by 2.5 m apart.
   Targets: < 20 ms (issue 24), < 30 ms (issue 19).
 * ``gpf.frame_15_targets_fine``: the same on a 400 x 400 frame of 0.05 m (15-pixel windows, the
-  pixel size of a high-frequency imaging sonar).
+  pixel size of a high-frequency imaging sonar), and ``gpf.frame_15_targets_2cm`` on a 1000 x 1000
+  frame of 0.02 m (35-pixel windows on the image's own pixels). The tracker measures the windows on
+  the image block-averaged to 0.1 m (``cues.pixel``), so both cost about what the 0.1 m frame does.
 * ``gpf.windows_300`` against ``gpf.patch_features_300``: the five features of 300 particle windows
   by the window path and by the general region path of ``core.fls`` (same values).
 * ``gpf.sir_track_step`` and ``gpf.ekf_frame_5_targets``: the baselines of Figure 13.
@@ -39,6 +41,7 @@ SPEED = 0.25
 TANK = (0.1, 300, 428, 25.0, N_FRAMES)
 SQUARE = (0.1, 400, 400, 30.0, 16)
 FINE = (0.05, 400, 400, 16.0, 8)
+FINEST = (0.02, 1000, 1000, 16.0, 8)
 
 
 def _grid(scene=TANK):
@@ -184,6 +187,8 @@ register(Case(name='gpf.frame_15_targets', group='gpf', make=_frame_step(15, SQU
                                          '300 particles each (core)'))
 register(Case(name='gpf.frame_15_targets_fine', group='gpf', make=_frame_step(15, FINE), self_timed=True, repeats=50,
               description='the same on a 400 x 400 frame of 0.05 m: 15-pixel windows (core)'))
+register(Case(name='gpf.frame_15_targets_2cm', group='gpf', make=_frame_step(15, FINEST), self_timed=True,
+              repeats=30, description='the same on a 1000 x 1000 frame of 0.02 m (core)'))
 register(Case(name='gpf.windows_300', group='gpf', make=_windows(False), repeats=50, compare_to='gpf.patch_features_300',
               description='features 20, 17, 3, 6, 24 of 300 windows of 7 x 7 pixels (core.fls.windows)'))
 register(Case(name='gpf.patch_features_300', group='gpf', make=_windows(True), repeats=20,
