@@ -18,8 +18,8 @@ the time, because a full box makes most of the general computation unnecessary:
   window, with Hu's invariants from :func:`~.features.hu_moments`;
 * the co-occurrence counts (f21-f30) of a full box count all pixel pairs of the box in the four
   directions: one ``bincount`` for all windows, grey levels from :func:`~.features.quantise` (of
-  the whole image once, at the first window that needs them) and the statistics from
-  :func:`~.features.glcm_features`.
+  the whole image once when a call asks for more window pixels than the image has) and the
+  statistics from :func:`~.features.glcm_features`.
 
 The image is padded once in :class:`WindowImage`; each call then gathers the patches by flat
 index into arrays kept between calls, :data:`CHUNK` windows at a time (so they stay in the cache).
@@ -30,7 +30,9 @@ The fallback of f06 (a window whose ring has no pixel with data) is the median o
 data of all the call's patches; a caller that looks up several particle clouds at once, or each
 distinct window once, passes ``groups`` (the cloud of each window) and ``counts`` (how many
 particles share it): the median is then that of the cloud's patches, each counted that many times,
-exactly as if the cloud had been looked up alone with its repeated windows.
+exactly as if the cloud had been looked up alone with its repeated windows. Every feature of a
+window is then the same to the last bit however the windows are batched, except f25-f29, whose
+matrix products in :func:`~.features.glcm_features` round differently with the batch size.
 """
 from __future__ import annotations
 
@@ -172,6 +174,9 @@ class WindowImage:
         ring = want & _GROUPS['background']
         background = np.empty(k) if ring else None
         has = np.empty(k, bool) if ring else None
+        if self._levels is None and want & _GROUPS['glcm'] and k * size * size > self._values.size:
+            # More window pixels than the image has: grey levels of the whole padded image, once.
+            self._levels = self._levels_of(self._values).copy()
         for a in range(0, k, CHUNK):
             b = min(k, a + CHUNK)
             self._chunk(r[a:b], c[a:b], size, want, out[a:b], None if background is None else background[a:b],
@@ -250,11 +255,12 @@ class WindowImage:
         if glcm_cols:
             s = self.config.glcm_levels
             d = self.config.glcm_distance
-            if self._levels is None:     # grey levels of the whole padded image, once
-                self._levels = self._levels_of(self._values).copy()
-            q = self._buffer('q', idx.shape, self._levels.dtype)
-            np.take(self._levels, idx, out=q)
-            q = q.reshape(k, m, m)[:, 1:-1, 1:-1]
+            if self._levels is None:
+                q = self._levels_of(box)
+            else:
+                q = self._buffer('q', idx.shape, self._levels.dtype)
+                np.take(self._levels, idx, out=q)
+                q = q.reshape(k, m, m)[:, 1:-1, 1:-1]
             # Code of a pair (a, b) of window j: (j S + a) S + b; the first factor once per pixel.
             first = self._buffer('first', q.shape, np.intp)
             first[...] = q

@@ -16,7 +16,8 @@ Per frame at time t (§4.2.3):
 The updates of all tracks are done together: their particles' windows are looked up in one
 batch (:meth:`.cues.CueModel.values`), as are the windows at their estimates, and the random
 numbers are drawn in the same order as one track after the other would draw them, so a frame
-gives the same tracks as updating each track on its own.
+gives the same tracks as updating each track on its own (to the last bit; with cues among f25-f29
+to their round-off, :mod:`~..fls.windows`).
 
 The image is checked (:func:`check_image`): negative pixels are refused, except round-off of the
 image filters (down to ``NEGATIVE_TOLERANCE`` times the image's largest magnitude), which reads as
