@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from ..config import Config, ConfigError, setting
 from ..fls import PAPER_FEATURES
 from ..fls.windows import WINDOW_SHAPE_FEATURES
+from .cues import MAX_WINDOW
 
 __all__ = ['MotionConfig', 'CueConfig', 'FusionConfig', 'BirthConfig', 'LostConfig', 'TemplateConfig',
            'GpfConfig', 'FUSION_MODES', 'FUSION_SWITCHES', 'PAPER_INITIAL_VARIANCE_PX', 'PAPER_PIXEL']
@@ -83,6 +84,13 @@ class CueConfig(Config):
             raise ConfigError(f'cues.features = {list(self.features)} must be whole Table 2 numbers 1..30')
         if len(set(self.numbers)) != len(self.numbers):
             raise ConfigError(f'cues.features = {list(self.numbers)} names a feature twice')
+        # The cues' pixel is between pixel / 2 and pixel (a block of whole image pixels), so the window
+        # has up to 2 window / pixel pixels; beyond MAX_WINDOW it would be cut.
+        if self.pixel > 0.0 and 2.0 * self.window / self.pixel > MAX_WINDOW + 1:
+            raise ConfigError(f'window {self.window:g} m spans up to {2.0 * self.window / self.pixel:.0f} pixels '
+                              f'of cues.pixel {self.pixel:g} m (blocks of whole image pixels are between half of it and '
+                              f'it); at most {MAX_WINDOW}: raise cues.pixel to at least '
+                              f'{2.0 * self.window / (MAX_WINDOW + 1):.3g} m or shrink cues.window')
         fixed = sorted(set(self.numbers) & WINDOW_SHAPE_FEATURES)
         if fixed:
             raise ConfigError(f'cues.features {fixed} are the same for every window (area, perimeter and shape of '

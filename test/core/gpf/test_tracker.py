@@ -256,6 +256,10 @@ def test_settings_are_checked_and_applied():
         GpfConfig.from_flat({'cues.features': (3.0, 3.0)})
     with pytest.raises(ConfigError, match='whole'):
         GpfConfig.from_flat({'cues.features': (3.5,)})
+    # A window that could be cut at MAX_WINDOW pixels of the cues' pixel is refused at the start.
+    with pytest.raises(ConfigError, match=r'cues.window 2.2 m spans up to 44 pixels of cues.pixel 0.1 m'):
+        GpfConfig.from_flat({'cues.window': 2.2})
+    assert GpfConfig.from_flat({'cues.window': 2.2, 'cues.pixel': 0.11}).cues.window == 2.2
     cfg = GpfConfig.from_flat({'cues.features': (3.0, 24.0), 'fusion.thresholds': (0.0, 1.7)})
     tracker = GpfTracker(cfg, np.random.default_rng(0))
     np.testing.assert_allclose(tracker.thresholds, [0.98, 1.7])     # 0 = the cue's calibrated T_i
