@@ -17,7 +17,8 @@ import msg_adapters as ma
 from sonar_tracking.core.detection import ActiveDetector
 from sonar_tracking.core.tracking import ImmIpdaTracker
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
-from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig, detections_to_measurements
+from sonar_tracking.core.tracking.detections import detections_to_measurements
+from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
 from sonar_tracking.tools.bags import bag_topics, read_bag
 
 pytestmark = pytest.mark.ros
