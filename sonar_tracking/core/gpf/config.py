@@ -88,8 +88,8 @@ class CueConfig(Config):
         # has up to 2 window / pixel pixels; beyond MAX_WINDOW it would be cut.
         if self.pixel > 0.0 and 2.0 * self.window / self.pixel > MAX_WINDOW + 1:
             raise ConfigError(f'window {self.window:g} m spans up to {2.0 * self.window / self.pixel:.0f} pixels '
-                              f'of cues.pixel {self.pixel:g} m (blocks of whole image pixels are between half of it and '
-                              f'it); at most {MAX_WINDOW}: raise cues.pixel to at least '
+                              f'of cues.pixel {self.pixel:g} m (blocks of whole image pixels are between half of '
+                              f'it and it); at most {MAX_WINDOW}: raise cues.pixel to at least '
                               f'{2.0 * self.window / (MAX_WINDOW + 1):.3g} m or shrink cues.window')
         fixed = sorted(set(self.numbers) & WINDOW_SHAPE_FEATURES)
         if fixed:
@@ -157,8 +157,8 @@ class LostConfig(Config):
     distinct: float = setting(1.0, 'a template is trackable when its mean (d_i / sigma_i)^2 to the frame\'s background '
                               '(the median window) exceeds this; a track whose template looks like background sees '
                               'nothing (ours)', low=0.0, high=1e6)
-    ratio: float = setting(0.5, 'the target is seen when the mean (d_i / sigma_i)^2 between the template and the window '
-                           'at the estimate is below this fraction of the template\'s distance to the background '
+    ratio: float = setting(0.5, 'the target is seen when the mean (d_i / sigma_i)^2 between the template and the '
+                           'window at the estimate is below this fraction of the template\'s distance to the background '
                            '(ours)', low=0.0, high=1.0, low_open=True)
     inflation: float = setting(1.5, 'covariance multiplied by this in each frame the target is not seen',
                                low=1.0, high=100.0)

@@ -46,8 +46,8 @@ MF's weighted position std is below the 0.7 m window (0.38, 0.48, 0.62, 0.65: wo
 when its effective sample size is at least 10 and its mean within 0.35 m of WF's (0.38, 0.40, 0.50,
 0.45), and that test combined with the crossing gate (0.37, 0.39, 0.50, 0.41: no better than the
 gate alone, with two more settings). Confirmed once on seed 2026 (not tuned there; one stream
-per method): AF 0.42 -> 0.37, 0.47 -> 0.40, 0.67 -> 0.61, 0.41 -> 0.40 against WF 0.38, 0.39, 0.57, 0.38 and MF 0.56, 0.56,
-0.65, 0.50, identity kept 87-90 %: AF beats MF everywhere and WF on situation 8, but WF stays
+per method): AF 0.42 -> 0.37, 0.47 -> 0.40, 0.67 -> 0.61, 0.41 -> 0.40 against WF 0.38, 0.39, 0.57, 0.38
+and MF 0.56, 0.56, 0.65, 0.50, identity kept 87-90 %: AF beats MF everywhere and WF on situation 8, but WF stays
 0.01-0.04 m ahead on 9-11 (within the run-to-run noise of a few failure runs). With common random
 numbers across methods (the study's design since, :mod:`sonar_tracking.core.eval.fls_study`) AF is
 within 0.01-0.09 m of WF on 8-11, not better. These figures predate the velocity conditioning of the

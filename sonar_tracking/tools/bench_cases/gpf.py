@@ -189,7 +189,8 @@ register(Case(name='gpf.frame_15_targets_fine', group='gpf', make=_frame_step(15
               description='the same on a 400 x 400 frame of 0.05 m: 15-pixel windows (core)'))
 register(Case(name='gpf.frame_15_targets_2cm', group='gpf', make=_frame_step(15, FINEST), self_timed=True,
               repeats=30, description='the same on a 1000 x 1000 frame of 0.02 m (core)'))
-register(Case(name='gpf.windows_300', group='gpf', make=_windows(False), repeats=50, compare_to='gpf.patch_features_300',
+register(Case(name='gpf.windows_300', group='gpf', make=_windows(False), repeats=50,
+              compare_to='gpf.patch_features_300',
               description='features 20, 17, 3, 6, 24 of 300 windows of 7 x 7 pixels (core.fls.windows)'))
 register(Case(name='gpf.patch_features_300', group='gpf', make=_windows(True), repeats=20,
               description='the same values by core.fls.patch_features (general region path)'))
