@@ -158,8 +158,8 @@ class LostConfig(Config):
                               '(the median window) exceeds this; a track whose template looks like background sees '
                               'nothing (ours)', low=0.0, high=1e6)
     ratio: float = setting(0.5, 'the target is seen when the mean (d_i / sigma_i)^2 between the template and the '
-                           'window at the estimate is below this fraction of the template\'s distance to the background '
-                           '(ours)', low=0.0, high=1.0, low_open=True)
+                           'window at the estimate is below this fraction of the template\'s distance to the '
+                           'background (ours)', low=0.0, high=1.0, low_open=True)
     inflation: float = setting(1.5, 'covariance multiplied by this in each frame the target is not seen',
                                low=1.0, high=100.0)
     refind_sigma: float = setting(0.65, 'position std of a region that a lost track takes up (ours: about the '
