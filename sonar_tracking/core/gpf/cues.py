@@ -209,8 +209,10 @@ class CueModel:
         return out
 
     def distances2(self, values: np.ndarray, template: np.ndarray) -> np.ndarray:
-        """``beta_i d^2(S^i, S_m^i)`` of eq. (13): squared scaled distances ``(m, K)``."""
-        d = (values - template[:, None]) / self.sigma[:, None]
+        """``beta_i d^2(S^i, S_m^i)`` of eq. (13): squared scaled distances ``(m, K)`` of values
+        ``(m, K)`` to a template ``(m,)``, or ``(n, m, K)`` of n tracks' values to their templates
+        ``(n, m)``."""
+        d = (values - template[..., None]) / self.sigma[:, None]
         return d * d
 
     def log_likelihoods(self, d2: np.ndarray) -> np.ndarray:

@@ -48,7 +48,7 @@ from ..records import GPF_TRACK_DTYPE
 from . import sir
 from .config import GpfConfig
 from .cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
-from .fusion import MF, WF, fuse, normalise_log, second_target
+from .fusion import MF, WF, fuse_many, normalise_log, second_target
 from .gaussian import condition_velocity, floor_position, kalman_update, predict, sample_gaussian, weighted_moments
 from .management import (birth_covariance, blend_template, left_coverage, reseed_pairs, should_end, spaced,
                          template_may_update, unexplained, widen)
@@ -313,14 +313,18 @@ class GpfTracker:
             particles = [sample_gaussian(tr.mean, tr.cov, k, z=z[i]) for i, tr in enumerate(tracks)]
         xy = np.concatenate([p[:, :2] for p in particles])
         values = self.cues.values(wi, grid, xy, frame.window, np.repeat(np.arange(n), k))
+        values = values.reshape(self.cues.m, n, k).transpose(1, 0, 2)                    # (n, m, K)
+        d2 = self.cues.distances2(values, np.array([tr.template for tr in tracks]))
         f = self.config.fusion
+        crowded = [f.mode == 'af' and f.switch == 'crossing' and second_target(tr.mean, tr.cov, others[i], f.gate)
+                   for i, tr in enumerate(tracks)]
+        # Positions as views of whole particle rows: the layout each track's fuse would see.
+        fusions = fuse_many(self.cues.log_likelihoods(d2), np.stack(particles)[:, :, :2], self.thresholds, f.mode,
+                            np.array(crowded))
         floor = max(res * res / 12.0, self.config.min_std ** 2)
         posteriors = []
         for i, tr in enumerate(tracks):
-            p = particles[i]
-            d2 = self.cues.distances2(values[:, i * k:(i + 1) * k], tr.template)
-            crowded = f.mode == 'af' and f.switch == 'crossing' and second_target(tr.mean, tr.cov, others[i], f.gate)
-            fused = fuse(self.cues.log_likelihoods(d2), p[:, :2], self.thresholds, f.mode, crowded)
+            p, fused = particles[i], fusions[i]
             if self.method == 'sir':
                 w = normalise_log(np.log(tr.weights) + fused.log_likelihood)
             else:
