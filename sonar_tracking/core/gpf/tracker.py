@@ -59,8 +59,9 @@ __all__ = ['GpfInputError', 'Frame', 'GpfTracker', 'StepReport', 'regions_xy', '
 METHODS = ('gpf', 'sir')
 
 #: Negative pixels down to this fraction of the image's largest magnitude are round-off of the image
-#: filters (-1.5e-15 next to intensities near 1 on recorded frames) and read as 0; below it, refused.
-NEGATIVE_TOLERANCE = 1e-9
+#: filters (-1.5e-15 next to intensities near 1 on recorded frames; a 32FC1 image rounds at about
+#: 1e-7 of its values) and read as 0; below it, refused.
+NEGATIVE_TOLERANCE = 1e-6
 
 
 class GpfInputError(ValueError):
