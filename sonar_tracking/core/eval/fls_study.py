@@ -186,6 +186,7 @@ import numpy as np
 from ..fls import FlsConfig
 from ..gpf import EkfConfig, EkfTracker, GpfConfig, GpfTracker
 from ..gpf.management import gated_assignment
+from ..sim.simulator import child_seeds
 from .fls_frames import TrackingFrame, simulate_tracking_frames
 from .metrics import center_location_error
 
@@ -329,7 +330,7 @@ def score_run(frames: list[TrackingFrame], records: list[np.ndarray], gate: floa
 
 def run_once(study: FlsStudy, seed: np.random.SeedSequence) -> dict:
     """One Monte Carlo run: simulate, track with every method, score (module docstring)."""
-    sim_seed, track_seed = seed.spawn(2)
+    sim_seed, track_seed = child_seeds(seed, 2)  # not seed.spawn: that changes the caller's sequence
     frames = simulate_tracking_frames(study.scenario, sim_seed, study.fls, study.preset, **dict(study.sim_overrides))
     tracks = run_methods(study, frames, track_seed)
     scores = {m: score_run(frames, recs, study.gate, study.cross_distance) for m, recs in tracks.items()}
