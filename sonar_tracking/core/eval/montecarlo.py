@@ -123,7 +123,7 @@ class RunPool:
     def map(self, fn: Callable[[Any, Any], Any], item: Any, seeds: Iterable, progress: Progress | None = None) -> list:
         """``[fn(item, s) for s in seeds]`` in that order, wherever the pool runs them.
 
-        ``fn`` must be a module-level function (it is pickled to the workers)."""
+        ``fn`` must be a module-level function of an installed package: workers import it by name."""
         seeds = list(seeds)
         tasks: Sequence[tuple] = [(fn, item, s) for s in seeds]
         if self.cluster:
