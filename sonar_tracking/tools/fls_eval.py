@@ -18,7 +18,6 @@ trajectories and CLE curves per target in the style of Figures 13, 16 and 19.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path

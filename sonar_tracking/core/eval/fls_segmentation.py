@@ -1,8 +1,9 @@
 """Simulated FLS frames with ground truth, and how segmentation is scored against it.
 
 :func:`simulate_frames` runs a scenario of :mod:`sonar_tracking.core.sim` through a
-:class:`~..fls.pipeline.FlsProcessor` (:func:`~.fls_frames.processed_frames`) and labels every frame with each target's noise-free echo in that
-frame (``SeaKingSonar.render_mean`` for that target alone), painted onto the frame's pixels:
+:class:`~..fls.pipeline.FlsProcessor` (:func:`~.fls_frames.processed_frames`) and labels every
+frame with each target's noise-free echo in that frame (``SeaKingSonar.render_mean`` for that
+target alone), painted onto the frame's pixels:
 
 * the target's **peak SNR** in the frame: the largest ratio of its mean echo to the mean
   reverberation over all cells of the sweep (aspect, range and beam position included);

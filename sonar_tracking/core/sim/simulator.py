@@ -56,8 +56,8 @@ class SimConfig(Config):
             raise ConfigError(f'scenario {self.scenario} runs on {"/".join(info.sensors)}, not preset {self.preset}')
         kind = self.structure.kind
         if kind != 'none' and (kind == 'harbour') != self.is_harbour:
-            raise ConfigError(f'structure.kind = {kind} is laid out for the '
-                              f'{"harbour" if kind == "harbour" else "SeaKing (tank)"} sensor, not preset {self.preset}')
+            where = 'harbour' if kind == 'harbour' else 'SeaKing (tank)'
+            raise ConfigError(f'structure.kind = {kind} is laid out for the {where} sensor, not preset {self.preset}')
 
     @classmethod
     def for_scenario(cls, scenario: str, preset: str = '', **flat) -> 'SimConfig':
