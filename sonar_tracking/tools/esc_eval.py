@@ -194,3 +194,36 @@ def _desired_density(args, snr: float, pool) -> tuple[dict, dict] | None:
           f'of {args.runs * args.scans}')
     return ({'snr_db': snr, 'desired_clutter_density': float(best['desired_clutter_density']),
              'pd': best['pd'], 't_c': best['t_c']}, {'snr_db': snr, 'v_rc': cfg.v_rc, **best})
+
+
+def add_table_arguments(parser) -> None:
+    """Arguments of ``sonar_eval esc-table``."""
+    parser.add_argument('--runs', type=int, default=500, help='Monte Carlo runs per study (paper: 500)')
+    parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--scans', type=int, default=0, help='scans per run, 0 = the paper\'s (50, 100)')
+    parser.add_argument('--cft-target', type=float, default=0.005,
+                        help='rate of CFT scans (Table 1) that sets T_c per method (default 0.005)')
+    add_pool_arguments(parser)
+    parser.add_argument('--json', type=Path, default=None, help='write the results here')
+
+
+def main_table(args) -> int:
+    """Run the ESC comparison at the paper's operating point; print the README table."""
+    from sonar_tracking.core.eval.esc_table import format_table, run_table
+    if args.runs < 2 or args.jobs < 1 or (args.scans and args.scans < 4) or not 0 < args.cft_target < 1:
+        print('error: need --runs >= 2, --jobs >= 1, --scans 0 or >= 4 and 0 < --cft-target < 1', file=sys.stderr)
+        return 2
+    t0 = time.monotonic()
+    try:
+        with pool_from_args(args) as pool:
+            result = run_table(args.runs, args.seed, pool, args.scans or None, args.cft_target)
+            where = pool.describe()
+    except ClusterUnavailable as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    result['wall_s'] = time.monotonic() - t0
+    print(f'esc-table: {time.monotonic() - t0:.0f} s on {where}')
+    print(format_table(result))
+    if args.json:
+        write_json(args.json, result)
+    return 0

@@ -46,7 +46,7 @@ from ..gpf import EkfConfig, EkfTracker, GpfConfig, GpfTracker
 from ..gpf.management import gated_assignment
 from ..sim.simulator import child_seeds
 from .fls_frames import TrackingFrame, simulate_tracking_frames
-from .metrics import center_location_error
+from .metrics import center_location_error, paired_difference
 
 __all__ = ['METHODS', 'FlsStudy', 'parse_methods', 'situation_scenario', 'run_methods', 'score_run', 'run_once',
            'summarise', 'run_cle', 'paired_difference', 'cue_statistics', 'crossing_window', 'reliability_samples',
@@ -238,21 +238,6 @@ def run_cle(cle: np.ndarray) -> float:
     the frames where it is defined (NaN when no target has any)."""
     per_target = _nanmean(np.asarray(cle, dtype=np.float64), axis=1)
     return float(_nanmean(per_target))
-
-
-def paired_difference(a: np.ndarray, b: np.ndarray) -> dict:
-    """Mean of ``a - b`` over the runs where both are finite, with the half-width of its 95 %
-    confidence interval (Student t) and the number of runs: with common random numbers the
-    methods' run-to-run noise is shared, so this tells a real difference from Monte Carlo noise
-    far better than two separate means do. ``ci95`` is None below two runs."""
-    from scipy.stats import t as student_t
-    d = np.asarray(a, dtype=np.float64) - np.asarray(b, dtype=np.float64)
-    d = d[np.isfinite(d)]
-    if d.size == 0:
-        return {'difference': None, 'ci95': None, 'runs': 0}
-    half = (float(student_t.ppf(0.975, d.size - 1) * d.std(ddof=1) / math.sqrt(d.size))
-            if d.size >= 2 else None)
-    return {'difference': float(d.mean()), 'ci95': half, 'runs': int(d.size)}
 
 
 def _nanmean(a: np.ndarray, axis=None):
