@@ -9,6 +9,9 @@ Subcommands:
   esc-table        ESC against fixed thresholds at the paper's operating point (T_c per method for a
                    CFT rate of 0.005), paired differences with 95 % intervals: the README table
   select-features  FLS paper §3: GRNN feature selection by SFS or SBS on simulated tank regions
+  fls              FLS paper §5: GPF, SIR and EKF tracks on Table 5 situations or the sea trial
+
+The Monte Carlo subcommands run over --jobs processes or a Dask cluster (--cluster).
 """
 from __future__ import annotations
 
@@ -40,7 +43,7 @@ def build_parser() -> argparse.ArgumentParser:
     esc_eval.add_desired_density_arguments(p)
     p.set_defaults(handler=esc_eval.main_desired_density)
     p = sub.add_parser('esc-table', help='ESC paper: every method at T_c for a CFT rate of 0.005, paired '
-                       'differences ESC - fixed with 95 % intervals (the README table)')
+                       'differences ESC - fixed with 95 %% intervals (the README table)')
     esc_eval.add_table_arguments(p)
     p.set_defaults(handler=esc_eval.main_table)
     p = sub.add_parser('select-features', help='FLS paper §3: GRNN feature selection by SFS or SBS on simulated '

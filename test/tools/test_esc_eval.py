@@ -69,3 +69,10 @@ def test_esc_table_reduced_prints_the_table_and_keeps_its_figures_consistent(tmp
 def test_esc_table_refuses_bad_arguments(capsys):
     assert main(['esc-table', '--runs', '1']) == 2
     assert '--runs >= 2' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('argv', [['--help'], ['esc-table', '--help'], ['select-features', '--help']])
+def test_help_texts_format(argv, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 0 and '--cluster' in capsys.readouterr().out or argv == ['--help']
