@@ -3,7 +3,6 @@ dropped with a reason while the node keeps running; parameters refused with reas
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +25,46 @@ def subscribe(ros, got: dict):
     for t in topics:
         got.setdefault(t, [])
     return [ros.node.create_subscription(typ, t, got[t].append, KEEP_ALL) for t, typ in topics.items()]
+
+
+def wait_processed(ros, sim, name: str = 'fls_features', timeout: float = 60.0) -> None:
+    """Wait until the simulator has finished and ``name`` has processed every sector it published
+    (the simulator's log gives the count, the node's /diagnostics its own)."""
+    import re
+
+    from diagnostic_msgs.msg import DiagnosticArray
+    ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
+    sent = int(re.search(r'finished after (\d+) sectors', sim.stderr.read()).group(1))
+    processed = [0]
+
+    def on_diag(msg):
+        for st in msg.status:
+            if st.name.startswith(name):
+                processed[0] = max(processed[0], int(dict((kv.key, kv.value) for kv in st.values)['processed']))
+    sub = ros.node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
+    try:
+        ros.wait(lambda: processed[0] >= sent, timeout, f'{name} to process all {sent} sectors')
+    finally:
+        ros.node.destroy_subscription(sub)
+
+
+def complete_frames(ros, got: dict, at_least: int = 3, timeout: float = 10.0) -> dict:
+    """A snapshot of ``got`` once image, image_info and regions hold the same frames (at least
+    ``at_least``), so no frame is half in."""
+    snap = {}
+
+    def settled() -> bool:
+        now = {t: list(m) for t, m in got.items()}
+        counts = {len(m) for m in now.values()}
+        if len(counts) != 1 or counts.pop() < at_least:
+            return False
+        last = (ma.header_ns(now['/fls/image'][-1]), ma.stamp_to_ns(now['/fls/image_info'][-1].map_load_time),
+                ma.header_ns(now['/fls/regions'][-1]))
+        snap.update(now)
+        return len(set(last)) == 1
+
+    ros.wait(settled, timeout, f'{at_least} complete frames')
+    return snap
 
 
 def frames_of(got: dict) -> list[tuple]:
@@ -55,12 +94,10 @@ def test_images_grid_and_regions_from_the_simulator(ros, launch):
     wait_for_node(ros)
     sim = launch('seaking_sim', 'scenario:=fls14', 'seed:=2', 'duration:=15.2', 'rate:=0.0', 'snr_db:=25.0',
                  'wait_for_subscribers:=1', 'shutdown_when_done:=true')
-    ros.wait(lambda: sim.poll() is not None, 60.0, 'the simulator to finish')
-    ros.wait(lambda: len(got['/fls/regions']) >= 3, 10.0, 'three frames')
-    time.sleep(0.3)
+    wait_processed(ros, sim)
+    frames = frames_of(complete_frames(ros, got))
     for s in subs:
         ros.node.destroy_subscription(s)
-    frames = frames_of(got)
     assert len(frames) >= 3, node.stderr.read() if node.poll() is not None else ''
     truth = ma.cloud_to_array(truths[-1])[0]
     for image, grid, regions, frame_id in frames:
@@ -87,12 +124,10 @@ def test_moving_platform_regions_in_the_world_frame(ros, launch):
     wait_for_node(ros)
     sim = launch('seaking_sim', 'scenario:=sea_trial', 'seed:=1', 'duration:=41.0', 'rate:=0.0', 'snr_db:=30.0',
                  'wait_for_subscribers:=1', 'shutdown_when_done:=true')
-    ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
-    ros.wait(lambda: len(got['/fls/regions']) >= 3, 10.0, 'three frames')
-    time.sleep(0.3)
+    wait_processed(ros, sim)
+    frames = frames_of(complete_frames(ros, got))
     for s in subs:
         ros.node.destroy_subscription(s)
-    frames = frames_of(got)
     # Truth along the way: every target's position at every sector stamp.
     path = np.array([(t['x'], t['y']) for m in truths for t in ma.cloud_to_array(m)])
     # The image follows the AUV along +x (keeping the last two sweeps' footprints).

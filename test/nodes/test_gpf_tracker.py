@@ -3,7 +3,6 @@ what the node must survive (an empty image, a frame without regions, bad input),
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +73,10 @@ class Harness:
                                                    stamp_ns=ns, frame_id='world'))
 
     def wait_tracks(self, n, timeout=30.0):
-        self.ros.wait(lambda: len(self.tracks) >= n, timeout, f'{n} /gpf/tracks messages')
+        try:
+            self.ros.wait(lambda: len(self.tracks) >= n, timeout, f'{n} /gpf/tracks messages')
+        except AssertionError as exc:
+            raise AssertionError(f'{exc}; got {len(self.tracks)}; the node said: {self.stop()[-3000:]}') from None
 
     def stop(self) -> str:
         """SIGINT the node; its stderr (the log)."""
@@ -201,7 +203,6 @@ def test_tracks_targets_from_the_simulated_sonar_through_fls_features(ros, launc
                  'shutdown_when_done:=true')
     ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
     ros.wait(lambda: len(tracks) >= 7, 20.0, 'tracks of every frame')
-    time.sleep(0.3)
     for s in subs:
         ros.node.destroy_subscription(s)
     path_xy = np.array([(t['x'], t['y']) for m in truth for t in ma.cloud_to_array(m)])

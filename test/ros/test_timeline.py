@@ -22,8 +22,10 @@ def test_pairer_completes_frames_of_any_parts_and_gives_up_older_ones():
     assert p.add('regions', 2, 'r2') == {'image': 'i2', 'info': 'n2', 'regions': 'r2'}
     assert p.pop_dropped() == [(1, ('image', 'info'))]        # stamp 1 can no longer complete
     assert p.missing(('image', 'info')) == ('regions',)
-    for s in (3, 4, 5):
+    for s in (4, 5, 3):
         p.add('image', s, s)
-    assert p.pop_dropped() == [(3, ('image',))]               # at most two stamps wait
+    assert p.pop_dropped() == [(3, ('image',))]               # at most two stamps wait: the oldest goes
+    assert p.add('info', 3, 'late') is None and p.pop_dropped() == [(3, ('info',))]   # and stays gone
     p.add('image', 5, 'again')
     assert p.pop_dropped() == [(5, ('image',))]               # a repeated part replaces the first
+    assert p.add('info', 4, 'n4') is None and p.add('regions', 4, 'r4')['image'] == 4
