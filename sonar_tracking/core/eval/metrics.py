@@ -36,7 +36,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-__all__ = ['TAU_TRUE', 'TAU_FALSE', 'MetricError', 'cft_scan_rate', 'paired_difference', 'ftd_distances', 'TrackClasses', 'classify_tracks',
+__all__ = ['TAU_TRUE', 'TAU_FALSE', 'MetricError', 'cft_scan_rate', 'paired_difference', 'ftd_distances',
+           'TrackClasses', 'classify_tracks',
            'ScanEvaluation', 'evaluate_scan', 'confirmed_true_track_rate', 'position_rmse',
            'confirmed_false_track_rate', 'OspaResult', 'ospa', 'GospaResult', 'gospa', 'center_location_error']
 
