@@ -50,8 +50,8 @@ class Harness:
                      node.create_subscription(MarkerArray, '/tracks/markers', self.markers.append, KEEP_ALL),
                      node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, KEEP_ALL)]
         # Our readers must be matched with the node's writers too, or its first outputs are lost.
-        ros.wait(lambda: self.pub.get_subscription_count() > 0 and all(s.get_publisher_count() > 0 for s in self.subs),
-                 30.0, 'the tracker to come up')
+        ros.wait(lambda: self.pub.get_subscription_count() > 0 and self.pub_odom.get_subscription_count() > 0
+                 and all(s.get_publisher_count() > 0 for s in self.subs), 30.0, 'the tracker to come up')
 
     def _on_diag(self, msg):
         self.diagnostics.extend(s for s in msg.status if s.name.startswith('imm_ipda_tracker'))
@@ -111,7 +111,9 @@ def test_tracks_a_target_and_publishes_tracks_markers_and_diagnostics(tracker):
     assert np.hypot(conf['vx'][0] - v[0], conf['vy'][0] - v[1]) < 3.0
     assert all(np.isfinite(tr[f]).all() for f in ma.TRACK_DTYPE.names)
     # Markers: DELETEALL, then the confirmed track's sphere, label, arrow and ellipse.
-    tracker.ros.wait(lambda: len(tracker.markers) >= n, 20.0, 'markers')
+    # (markers are for RViz: a reader that falls behind may miss some, never the newest)
+    tracker.ros.wait(lambda: tracker.markers and tracker.markers[-1].markers[-1].header.stamp == last.header.stamp,
+                     20.0, 'the markers of the last scan')
     marks = tracker.markers[-1].markers
     assert marks[0].action == 3 and len(marks) == 5
     assert {m.ns for m in marks[1:]} == {'tracks/position', 'tracks/label', 'tracks/velocity', 'tracks/covariance'}
@@ -133,54 +135,8 @@ def test_no_detections_give_an_empty_tracks_message(tracker):
     assert [m.action for m in tracker.markers[0].markers] == [3]           # DELETEALL only
 
 
-def test_bad_input_is_dropped_with_a_reason_and_never_crashes(tracker):
-    from sensor_msgs.msg import PointCloud2, PointField
-    rng = np.random.default_rng(41)
-    good = detections(rng, (0.0, 0.0), 3)
-    tracker.send(1.0, good)
-    tracker.wait_tracks(1)
-    first_ids = set(ma.cloud_to_array(tracker.tracks[0])['track_id'].tolist())
-    # 1. Malformed: data shorter than the fields say.
-    short = ma.array_to_cloud(good, stamp_ns=2 * 10**9, frame_id='world')
-    short.data = short.data[:10]
-    tracker.send(2.0, msg=short)
-    # 2. A field type PointCloud2 does not have.
-    bad_type = PointCloud2(height=1, width=1, point_step=8, row_step=8, data=bytes(8),
-                           fields=[PointField(name='x', offset=0, datatype=42, count=1)])
-    bad_type.header.stamp = ma.ns_to_stamp(2 * 10**9)
-    tracker.send(2.0, msg=bad_type)
-    # 3. No x/y fields.
-    tracker.send(2.0, np.zeros(2, [('range', '<f8'), ('bearing', '<f8')]))
-    # 4. NaN, non-positive-definite covariance, zero clutter density: those rows go, the rest stays.
-    rows = detections(rng, (10.0, 5.0), 4)
-    rows['x'][1] = np.nan
-    rows['cov_xx'][2], rows['cov_xy'][2], rows['cov_yy'][2] = 1.0, 5.0, 1.0
-    rows['clutter_density'][3] = 0.0
-    tracker.send(3.0, rows)
-    # 5. The same stamp again: dropped.
-    tracker.send(3.0, rows)
-    # 6. Time going back (a bag looping): clean restart with new ids.
-    tracker.send(0.5, detections(rng, (0.0, 0.0), 3))
-    tracker.send(1.5, detections(rng, (8.0, 4.0), 3))
-    tracker.wait_tracks(4)
-    stamps = [ma.header_ns(m) / 1e9 for m in tracker.tracks]
-    assert stamps == [1.0, 3.0, 0.5, 1.5], stamps
-    for m in tracker.tracks:
-        tr = ma.cloud_to_array(m)
-        assert all(np.isfinite(tr[f]).all() for f in ma.TRACK_DTYPE.names)
-    after_reset = set(ma.cloud_to_array(tracker.tracks[2])['track_id'].tolist())
-    assert after_reset and not after_reset & first_ids and min(after_reset) > max(first_ids)
-    assert tracker.proc.poll() is None, 'the node must still run'
-    err = tracker.stop()
-    assert 'Traceback' not in err, err
-    assert 'data is short' in err and 'unknown PointField datatype 42' in err and 'need fields x and y' in err
-    assert 'dropped 3 of 5 detections' in err
-    assert 'not finite' in err and 'not positive definite' in err and 'clutter density' in err
-    assert 'repeats the last stamp' in err
-    assert 'time went backwards' in err
-
-
-@pytest.mark.parametrize('tracker', [('detection.probability:=-1.0', 'imm.models:=cv,spin', 'marker_scale:=5.0')],
+@pytest.mark.parametrize('tracker', [('detection.probability:=-1.0', 'imm.models:=cv,spin', 'marker_scale:=5.0',
+                                      'publish_tentative:=true')],
                          indirect=True)
 def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker):
     from rcl_interfaces.srv import GetParameters, SetParameters
@@ -204,7 +160,7 @@ def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker)
     r = set_('existence.terminate', 0.5)
     assert not r.successful and 'existence.terminate' in r.reason
     r = set_('world_frame', 'map')
-    assert not r.successful and 'start-up' in r.reason
+    assert not r.successful and 'read-only' in r.reason
     assert set_('detection.probability', 0.7).successful
     assert set_('clutter.density', 1).successful       # an integer for a double is accepted
     # A new mode set restarts the tracker: new tracks carry only the CV mode.
