@@ -52,12 +52,18 @@ def allocator_applied(env: Mapping[str, str] | None = None) -> bool:
 def reexec_with_allocator(argv: list[str] | None = None) -> None:
     """Restart this Python program with :func:`allocator_env` unless it already runs with it.
 
-    Replaces the process (``os.execve``); returns only when nothing needs doing. ``argv``
-    defaults to ``sys.argv``. Call it before any other work: what ran before is redone.
+    Replaces the process (``os.execve``); returns only when nothing needs doing. ``argv`` (the
+    interpreter's arguments) defaults to ``sys.argv``, or ``-m MODULE ...`` when the program was
+    started with ``python -m``. Call it before any other work: what ran before is redone.
     """
     if allocator_applied():
         return
-    args = [sys.executable, *(sys.argv if argv is None else argv)]
+    if argv is None:
+        main = sys.modules.get('__main__')
+        spec = getattr(main, '__spec__', None)
+        # Started with ``python -m pkg.mod``: restart the same way, so package imports keep working.
+        argv = ['-m', spec.name, *sys.argv[1:]] if spec is not None and spec.name else list(sys.argv)
+    args = [sys.executable, *argv]
     sys.stdout.flush()
     sys.stderr.flush()
     os.execve(sys.executable, args, allocator_env())

@@ -31,3 +31,19 @@ def test_reexec_restarts_once_with_the_settings(tmp_path):
     out = subprocess.run([sys.executable, str(script), 'a', 'b'], env=env, capture_output=True, text=True,
                          check=True, timeout=60).stdout.split('\n')
     assert out[:3] == ['start', 'start', f"{allocator.ALLOCATOR_SETTINGS['MALLOC_MMAP_THRESHOLD_']} ['a', 'b']"]
+
+
+def test_reexec_of_a_module_run_keeps_it_a_module(tmp_path):
+    pkg = tmp_path / 'pkg_alloc'
+    pkg.mkdir()
+    (pkg / '__init__.py').write_text('VALUE = "pkg"\n')
+    (pkg / 'main.py').write_text('import os\n'
+                                 'from . import VALUE\n'
+                                 'from sonar_tracking.core.allocator import reexec_with_allocator\n'
+                                 'reexec_with_allocator()\n'
+                                 'print(VALUE, os.environ.get("MALLOC_TRIM_THRESHOLD_"))\n')
+    env = {k: v for k, v in allocator.allocator_env().items() if k not in allocator.ALLOCATOR_SETTINGS}
+    env['PYTHONPATH'] = f'{tmp_path}:{env.get("PYTHONPATH", "")}'
+    out = subprocess.run([sys.executable, '-m', 'pkg_alloc.main'], env=env, capture_output=True, text=True,
+                         check=True, timeout=60).stdout.strip()
+    assert out == f"pkg {allocator.ALLOCATOR_SETTINGS['MALLOC_TRIM_THRESHOLD_']}"
