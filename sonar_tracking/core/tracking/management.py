@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gating import candidate_pairs
+from .gating import budgeted_pairs
 
 __all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'duplicate_tracks',
            'initiation_ratio', 'excess_tracks']
@@ -84,15 +84,16 @@ def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarr
 
 
 def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confirmed: np.ndarray,
-                     ids: np.ndarray, threshold: float) -> np.ndarray:
+                     ids: np.ndarray, threshold: float, max_pairs: int | None = None) -> np.ndarray:
     """Mask of tracks to remove as duplicates of a confirmed track (see the module docstring).
 
     ``x (n, T)``, ``P (n, n, T)`` are the combined estimates (eqs. 41-42). Candidates are
     screened spatially first with the gating index
-    (:func:`~sonar_tracking.core.tracking.gating.candidate_pairs`): along each position axis j a
+    (:func:`~sonar_tracking.core.tracking.gating.budgeted_pairs`): along each position axis j a
     duplicate lies within ``sqrt(threshold (P_jj + max_c P^c_jj))`` of a confirmed track (a
     marginal Mahalanobis distance never exceeds the full one), so the work follows the near
-    pairs, not confirmed x all tracks; the full test runs on those.
+    pairs, not confirmed x all tracks; the full test runs on those. At most ``max_pairs``
+    candidate pairs are tested per call (youngest tracks first); tracks beyond wait for the next.
     """
     n = x.shape[1]
     drop = np.zeros(n, dtype=bool)
@@ -104,7 +105,7 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     with np.errstate(invalid='ignore'):
         half = np.sqrt(threshold * (pos_var + pos_var[:, conf].max(axis=1)[:, None])).T
     centre = x[:d].T
-    tj, k = candidate_pairs(centre - half, centre + half, centre[conf])
+    tj, k, _ = budgeted_pairs(centre - half, centre + half, centre[conf], max_pairs, lambda: np.argsort(-ids))
     ci = conf[k]
     near = ci != tj
     ci, tj = ci[near], tj[near]

@@ -135,3 +135,30 @@ def test_initiation_ratio_is_the_expected_target_likelihood_over_clutter():
     density = stats.multivariate_normal(np.zeros(2), S).pdf(nu)
     got = initiation_ratio(R, np.array([rho]), speed, dt, pd)[0]
     assert got == pytest.approx(pd * density.mean() / rho, rel=0.01)
+
+
+def test_duplicate_check_of_coincident_confirmed_tracks_stays_within_its_pair_budget():
+    """3,000 confirmed tracks on one spot: 9 M near pairs; the budget bounds memory, the oldest id stays."""
+    import tracemalloc
+
+    from sonar_tracking.core.tracking.management import duplicate_tracks
+    n = 3000
+    x = np.zeros((4, n))
+    P = np.broadcast_to(np.eye(4)[:, :, None], (4, 4, n)).copy()
+    ids = np.random.default_rng(33).permutation(n) + 1
+    alive = np.ones(n, dtype=bool)
+    tracemalloc.start()
+    try:
+        for _ in range(200):
+            idx = np.flatnonzero(alive)
+            if len(idx) == 1:
+                break
+            drop = duplicate_tracks(x[:, idx], P[..., idx], np.ones(len(idx)), np.ones(len(idx), dtype=bool),
+                                    ids[idx], 9.49, max_pairs=100_000)
+            assert drop.any()
+            alive[idx[drop]] = False
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert np.flatnonzero(alive).tolist() == [int(np.argmin(ids))]
+    assert peak < 100e6

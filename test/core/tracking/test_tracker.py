@@ -407,3 +407,4 @@ def test_coverage_contains_the_annular_sector_across_the_bearing_wrap():
     assert cov.contains(pts).tolist() == [True, True, False, False, False, False]
     with pytest.raises(TrackingInputError):
         Coverage(origin=(0.0, 0.0), yaw=0.0, bearing_min=0.0, bearing_max=1.0, range_max=-1.0)
+
