@@ -94,23 +94,31 @@ class ExistenceConfig(Config):
 
 @dataclass(frozen=True)
 class InitConfig(Config):
-    """One-point track initiation: position from the measurement, velocity from a prior."""
+    """One-point track initiation: position from the measurement, velocity from a prior; a budget per scan."""
 
     speed_max: float = setting(15.0, 'largest target speed; each velocity component of a new track has '
                                'mean 0 and variance speed_max^2 / 3', unit='m/s', low=0.0, high=1e4, low_open=True)
+    max_per_scan: int = setting(1000, 'most tracks started per scan; when more detections are unused, those no '
+                                'track validated come first, then the lowest clutter density (see management); '
+                                'the paper studies set it high enough never to bind', low=0, high=10_000_000)
 
 
 @dataclass(frozen=True)
 class TrackConfig(Config):
-    """Track bookkeeping beyond the paper: duplicates, a cap on tracks, long gaps."""
+    """Track bookkeeping beyond the paper: duplicates, caps on tracks and pairs, coverage, long gaps."""
 
     merge_threshold: float = setting(9.49, 'a track whose state lies within this squared Mahalanobis distance '
                                      '(summed covariances, 4 dof) of an older confirmed track is removed as a '
                                      'duplicate; 0 = never', low=0.0, high=1e6)
     max_position_std: float = setting(30.0, 'a track whose position std (largest axis) exceeds this is terminated: '
                                       'it no longer follows anything', unit='m', low=0.0, high=1e9, low_open=True)
-    max_tracks: int = setting(5000, 'most tracks kept; beyond, the least likely tentative tracks are dropped',
-                              low=1, high=10_000_000)
+    max_tracks: int = setting(5000, 'most tracks kept after each scan (new ones included); beyond, the least '
+                              'likely tentative tracks are dropped', low=1, high=10_000_000)
+    max_pairs: int = setting(1_000_000, 'most track-detection candidate pairs per scan; beyond, the tentative '
+                             'tracks with the most candidates (densest clutter) are dropped first, then '
+                             'confirmed ones', low=1, high=1_000_000_000)
+    outside_time: float = setting(10.0, 'a track whose estimate has been outside the sensor coverage passed to '
+                                  'step() for this long ends', unit='s', low=0.0, high=1e9)
     max_gap: float = setting(60.0, 'a scan more than this after the previous one restarts the tracker',
                              unit='s', low=0.0, high=1e9, low_open=True)
 

@@ -28,8 +28,8 @@ from scipy.special import gammainc, gammaincinv
 
 from .errors import TrackingInputError
 
-__all__ = ['gate_threshold', 'gate_probability', 'candidate_pairs', 'gate_boxes', 'Innovations', 'innovations',
-           'gaussian_density']
+__all__ = ['gate_threshold', 'gate_probability', 'candidate_pairs', 'candidate_counts', 'gate_boxes', 'Innovations',
+           'innovations', 'gaussian_density']
 
 
 def gate_threshold(p_gate: float, dim: int = 2) -> float:
@@ -93,11 +93,49 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.n
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):   # no gate: every pair
         return np.repeat(np.arange(n_tracks), n_meas), np.tile(np.arange(n_meas), n_tracks)
     if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS:                   # small: test every box at once
-        inside = (z[:, 0] >= lo[:, 0, None]) & (z[:, 0] <= hi[:, 0, None])
-        for j in range(1, z.shape[1]):
-            inside &= (z[:, j] >= lo[:, j, None]) & (z[:, j] <= hi[:, j, None])
-        track, meas = np.nonzero(inside)
+        track, meas = np.nonzero(_inside(lo, hi, z))
         return track, meas
+    order, tr, first, count = _strip_search(lo, hi, z)
+    track = np.repeat(tr, count)
+    start = np.cumsum(count) - count
+    meas = order[np.arange(len(track)) - np.repeat(start - first, count)]
+    keep = (z[meas, 0] >= lo[track, 0]) & (z[meas, 0] <= hi[track, 0])
+    for j in range(1, z.shape[1]):
+        zj = z[meas, j]
+        keep &= (zj >= lo[track, j]) & (zj <= hi[track, j])
+    return track[keep], meas[keep]
+
+
+def candidate_counts(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``(T,)`` upper bound on the pairs :func:`candidate_pairs` returns per track, without building them.
+
+    Counts the measurements of the strip search (before the exact box test), so the cost is
+    that of the binary searches, not of the pairs.
+    """
+    n_tracks, n_meas = lo.shape[0], z.shape[0]
+    if n_tracks == 0 or n_meas == 0:
+        return np.zeros(n_tracks, dtype=np.intp)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return np.full(n_tracks, n_meas, dtype=np.intp)
+    if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS:
+        return np.count_nonzero(_inside(lo, hi, z), axis=1)
+    _, tr, _, count = _strip_search(lo, hi, z)
+    return np.bincount(tr, weights=count, minlength=n_tracks).astype(np.intp)
+
+
+def _inside(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``(T, N)`` bool: measurement n lies in box t."""
+    inside = (z[:, 0] >= lo[:, 0, None]) & (z[:, 0] <= hi[:, 0, None])
+    for j in range(1, z.shape[1]):
+        inside &= (z[:, j] >= lo[:, j, None]) & (z[:, j] <= hi[:, j, None])
+    return inside
+
+
+def _strip_search(lo: np.ndarray, hi: np.ndarray, z: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The strip search of :func:`candidate_pairs`: measurement ``order`` and, per (track, strip)
+    the box overlaps, the track ``tr``, the ``first`` position in ``order`` and the ``count``."""
+    n_tracks, n_meas = lo.shape[0], z.shape[0]
     zx = z[:, 0]
     zy = z[:, 1] if z.shape[1] > 1 else np.zeros(n_meas)
     x0, span_x = zx.min(), zx.max() - zx.min()
@@ -122,14 +160,7 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.n
         ylo, yhi = np.zeros(len(tr)), np.zeros(len(tr))
     first = np.searchsorted(keys, st * span_y + ylo, side='left')
     count = np.maximum(np.searchsorted(keys, st * span_y + yhi, side='right') - first, 0)
-    track = np.repeat(tr, count)
-    start = np.cumsum(count) - count
-    meas = order[np.arange(len(track)) - np.repeat(start - first, count)]
-    keep = (zx[meas] >= lo[track, 0]) & (zx[meas] <= hi[track, 0])
-    for j in range(1, z.shape[1]):
-        zj = z[meas, j]
-        keep &= (zj >= lo[track, j]) & (zj <= hi[track, j])
-    return track[keep], meas[keep]
+    return order, tr, first, count
 
 
 @dataclass(frozen=True)

@@ -16,6 +16,28 @@ acceleration moments", IEEE TAES 2013). We chose it over two-point differencing 
 * ``P_{0|0} = diag(R, speed_max^2/3 I)`` is well defined, which false-track discrimination
   (eqs. 47-48) needs.
 
+Initiation budget (not in the paper). One-point initiation starts a track on every unused
+detection, and each new track's gate is wide (the velocity prior), so in dense clutter the next
+scan pairs T = N tracks with many detections each: work grows with the square of the clutter.
+At most ``init.max_per_scan`` tracks start per scan. When more detections are unused, the ones
+that start tracks are chosen by how likely they are to be a new target:
+
+1. detections that no track (tentative or confirmed) validated come first: one inside a
+   tentative track's gate is already being followed as a possible target;
+2. then the lowest clutter density ``rho`` (SCMDE): IPDA's existence update (eqs. 33, 40) grows
+   with ``p / rho``, so a track born in dense clutter is the least likely to be confirmed;
+3. then the detection order (the detector lists the strongest first).
+
+When fewer detections are unused than the budget (the paper's scenarios), every one starts a
+track, which is the paper's one-point initiation.
+
+Caps (not in the paper). After initiation, at most ``track.max_tracks`` tracks are kept (the
+least likely tentative ones go, :func:`excess_tracks`). Before the update, the candidate pairs
+(detections inside a track's gate box) are counted; beyond ``track.max_pairs`` the tracks with
+the most candidates are dropped, tentative before confirmed (:func:`pair_budget`): a gate holding
+thousands of detections carries no information about a target. Together these bound the tracks,
+the pairs and so the memory and time of a scan for any input.
+
 Confirmation: a track is confirmed the first time its existence exceeds ``T_c`` and stays
 confirmed until it is terminated (the paper's FTD counts confirmed tracks per scan). Termination:
 existence below the lower threshold.
@@ -26,14 +48,18 @@ same target. A track whose combined state lies within ``merge_threshold`` (squar
 distance with the two covariances summed) of a confirmed track is removed: a tentative duplicate
 of a confirmed track goes, and of two confirmed duplicates the younger one, so the id a user
 sees stays on the target. The check runs when a track is confirmed (duplicates are born before
-that) and, among confirmed tracks, on every scan.
+that) and, among confirmed tracks, on every scan. Candidates are found with the gating's box
+search (each track's box holds every state within the threshold of it), so the cost follows the
+nearby pairs, not confirmed x all tracks.
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'duplicate_tracks',
-           'excess_tracks']
+from .gating import candidate_pairs
+
+__all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'birth_measurements',
+           'duplicate_tracks', 'excess_tracks', 'pair_budget']
 
 
 def initial_covariance(R: np.ndarray, speed_max: float) -> np.ndarray:
@@ -72,31 +98,67 @@ def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarr
     return ~used
 
 
+def birth_measurements(unused: np.ndarray, validated: np.ndarray, rho: np.ndarray, budget: int) -> np.ndarray:
+    """Indices (ascending) of the unused measurements that start tracks, at most ``budget``.
+
+    ``unused (N,)`` bool (:func:`unused_measurements`), ``validated`` measurement indices of the
+    scan's validated pairs (any track), ``rho (N,)`` clutter densities. The order of preference
+    is in the module docstring.
+    """
+    idx = np.flatnonzero(unused)
+    if len(idx) <= budget:
+        return idx
+    seen = np.zeros(len(unused), dtype=bool)
+    seen[validated] = True
+    order = np.lexsort((idx, rho[idx], seen[idx]))
+    return np.sort(idx[order[:budget]])
+
+
+def pair_budget(counts: np.ndarray, confirmed: np.ndarray, max_pairs: int) -> np.ndarray:
+    """Mask of tracks to drop so the candidate pairs ``counts (T,)`` sum to at most ``max_pairs``.
+
+    Tentative tracks go before confirmed ones, and within each the tracks with the most
+    candidates first.
+    """
+    drop = np.zeros(len(counts), dtype=bool)
+    excess = int(counts.sum()) - max_pairs
+    if excess <= 0:
+        return drop
+    order = np.lexsort((-counts, confirmed))
+    n_drop = int(np.searchsorted(np.cumsum(counts[order]), excess, side='left')) + 1
+    drop[order[:n_drop]] = True
+    return drop
+
+
 def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confirmed: np.ndarray,
                      ids: np.ndarray, threshold: float) -> np.ndarray:
     """Mask of tracks to remove as duplicates of a confirmed track (see the module docstring).
 
     ``x (n, T)``, ``P (n, n, T)`` are the combined estimates (eqs. 41-42). Candidates are first
-    screened on position alone (a marginal Mahalanobis distance never exceeds the full one), so
-    the full test runs on few pairs.
+    screened in boxes (``|dx_j| <= sqrt(thr P_jj) + sqrt(thr P'_jj)`` is necessary for a
+    duplicate, since a marginal Mahalanobis distance never exceeds the full one), then on
+    position alone, so the full test runs on few pairs.
     """
     n = x.shape[1]
     drop = np.zeros(n, dtype=bool)
     conf = np.flatnonzero(confirmed)
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
-    dx = x[0][None, :] - x[0, conf][:, None]                            # (C, T)
-    dy = x[1][None, :] - x[1, conf][:, None]
-    a = P[0, 0][None, :] + P[0, 0, conf][:, None]
-    b = P[0, 1][None, :] + P[0, 1, conf][:, None]
-    c = P[1, 1][None, :] + P[1, 1, conf][:, None]
+    pos = x[:2].T                                                       # (T, 2)
+    half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
+    reach = half[conf] + half.max(axis=0)
+    ci, tj = candidate_pairs(pos[conf] - reach, pos[conf] + reach, pos)
+    ci = conf[ci]
+    other = ci != tj
+    ci, tj = ci[other], tj[other]
+    dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
+    a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
     with np.errstate(divide='ignore', invalid='ignore'):
         d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
-    near = (d2 < threshold) & (conf[:, None] != np.arange(n)[None, :])
-    ci, tj = np.nonzero(near)
+    near = d2 < threshold
+    ci, tj = ci[near], tj[near]
     if len(ci) == 0:
         return drop
-    ci = conf[ci]
     diff = (x[:, ci] - x[:, tj]).T
     S = np.moveaxis(P[:, :, ci] + P[:, :, tj], -1, 0)
     full = np.linalg.solve(S, diff[..., None])[..., 0]

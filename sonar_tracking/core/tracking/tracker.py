@@ -21,6 +21,17 @@ Input handling of :meth:`ImmIpdaTracker.step`:
 
 The output never holds a NaN: a track whose estimate stops being finite is removed
 (``report.dropped_numerical``).
+
+Work and memory per scan are bounded for any input (see :mod:`~sonar_tracking.core.tracking.management`
+for the rules): at most ``init.max_per_scan`` tracks start per scan, at most ``track.max_tracks``
+tracks are kept, at most ``track.max_pairs`` candidate pairs are formed, and the pairs are
+processed in chunks of at most ``_CHUNK_PAIRS`` (tracks are independent IPDAs, so chunking
+changes no result), so the per-pair arrays never exceed a fixed size.
+
+Coverage (optional, not in the paper): ``step(..., coverage=...)`` takes the polar window the
+scan covered (:class:`~sonar_tracking.core.tracking.coverage.Coverage`); a track whose estimate
+has stayed outside the windows of successive scans for ``track.outside_time`` seconds ends
+(``report.left_coverage``). Scans without a window leave the clock as it is.
 """
 from __future__ import annotations
 
@@ -31,13 +42,14 @@ import numpy as np
 
 from ..records import TRACK_DTYPE
 from .config import MODE_NAMES, TrackerConfig
+from .coverage import Coverage
 from .errors import TrackingInputError
-from .gating import Innovations, candidate_pairs, gate_boxes, gate_threshold, innovations
+from .gating import candidate_counts, candidate_pairs, gate_boxes, gate_threshold, innovations
 from .imm import combine, interaction
 from .ipda import ipda_update
 from .kalman import predict, transition_operators
-from .management import (duplicate_tracks, excess_tracks, initial_covariance, one_point_initiation,
-                         unused_measurements)
+from .management import (birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
+                         one_point_initiation, pair_budget, unused_measurements)
 from .markov import mode_transition_matrix, predict_existence
 from .measurements import Rejection, as_measurements, check_measurements
 from .motion import ConstantTurn, ConstantVelocity, MotionModel
@@ -46,6 +58,8 @@ from .noise import white_noise_acceleration
 __all__ = ['Mode', 'modes_from_config', 'StepReport', 'ImmIpdaTracker']
 
 _ID_SPACE = 2 ** 32
+# Most candidate pairs gated and updated at once (bounds the per-pair arrays, ~1 kB per pair).
+_CHUNK_PAIRS = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -84,6 +98,9 @@ class StepReport:
     terminated: int = 0
     merged: int = 0
     capped: int = 0
+    not_initiated: int = 0
+    pair_capped: int = 0
+    left_coverage: int = 0
     dropped_numerical: int = 0
     n_tracks: int = 0
     n_confirmed: int = 0
@@ -148,6 +165,7 @@ class ImmIpdaTracker:
         self._confirmed = np.zeros(0, dtype=bool)
         self._xc = np.zeros((n, 0))
         self._Pc = np.zeros((n, n, 0))
+        self._outside_since = np.zeros(0)          # time a track's estimate left the coverage; NaN inside
         self._t: float | None = None
         self._output = np.zeros(0, TRACK_DTYPE)
 
@@ -178,7 +196,7 @@ class ImmIpdaTracker:
         return self._xc.T.copy(), np.moveaxis(self._Pc, -1, 0).copy()
 
     # ---------------------------------------------------------------- one scan
-    def step(self, t: float, z, R=None, rho=None) -> np.ndarray:
+    def step(self, t: float, z, R=None, rho=None, coverage: Coverage | None = None) -> np.ndarray:
         """Process one scan and return all tracks (tentative and confirmed) as ``TRACK_DTYPE``.
 
         The returned array is read-only (it is not copied); copy it to change it.
@@ -191,6 +209,8 @@ class ImmIpdaTracker:
         rho : ``(N,)`` clutter density at each detection (SCMDE) [1/m^2], used when
             ``clutter.source`` is ``detection``; None, or source ``constant``, uses
             ``clutter.density``.
+        coverage : the world-frame window this scan covered; None = unknown (no track ends for
+            leaving coverage on this scan).
         """
         cfg = self.config
         t = float(t)
@@ -220,18 +240,24 @@ class ImmIpdaTracker:
         if len(self._ids):
             # Overflow on absurd input shows as non-finite estimates, which _manage removes.
             with np.errstate(over='ignore', invalid='ignore', divide='ignore', under='ignore'):
-                pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho)
+                pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho, rep)
             rep.n_pairs = len(pair_track)
             with np.errstate(over='ignore', invalid='ignore'):
-                self._manage(rep)
+                self._manage(rep, t, coverage)
             alive = self._alive
             # Pairs of surviving tracks, re-indexed (used to find measurements of confirmed tracks).
             new_index = np.cumsum(alive) - 1
             sel = alive[pair_track]
             pair_track, pair_meas = new_index[pair_track[sel]], pair_meas[sel]
         unused = unused_measurements(len(z), pair_track, pair_meas, self._confirmed)
-        self._initiate(z[unused], R[unused])
-        rep.initiated = int(unused.sum())
+        born = birth_measurements(unused, pair_meas, rho, cfg.init.max_per_scan)
+        self._initiate(z[born], R[born])
+        rep.initiated = len(born)
+        rep.not_initiated = int(np.count_nonzero(unused)) - len(born)
+        if len(self._ids) > cfg.track.max_tracks:
+            cap = excess_tracks(self._exist, self._confirmed, cfg.track.max_tracks)
+            rep.capped = int(np.count_nonzero(cap))
+            self._keep(~cap)
         self._t = t
         self._output = self._records()
         self._fill_counts(rep)
@@ -245,7 +271,7 @@ class ImmIpdaTracker:
             self._fq_cache = (dt, F, Q, transition_operators(F))
         return self._fq_cache[1:]
 
-    def _predict_update(self, dt: float, z: np.ndarray, R: np.ndarray, rho: np.ndarray
+    def _predict_update(self, dt: float, z: np.ndarray, R: np.ndarray, rho: np.ndarray, rep: StepReport
                         ) -> tuple[np.ndarray, np.ndarray]:
         cfg, d = self.config, self.d
         meas_side = np.concatenate((z.T, R.reshape(len(z), d * d).T))                # (d + d^2, N)
@@ -259,6 +285,40 @@ class ImmIpdaTracker:
         diag = np.arange(d)
         r_max = R[:, diag, diag].max(axis=0) if len(z) else np.zeros(d)
         lo, hi = gate_boxes(track_side[:d], track_side[d + diag * (d + 1)], r_max, self.gamma)
+        n_tracks = len(self._ids)
+        bounds = [0, n_tracks]
+        if n_tracks * len(z) > _CHUNK_PAIRS:
+            counts = candidate_counts(lo, hi, z)
+            drop = pair_budget(counts, self._confirmed, cfg.track.max_pairs)
+            if drop.any():
+                rep.pair_capped = int(np.count_nonzero(drop))
+                keep = ~drop
+                self._keep(keep)
+                x_pred, P_pred, mu_pred, e_pred = x_pred[..., keep], P_pred[..., keep], mu_pred[:, keep], e_pred[keep]
+                track_side, lo, hi, counts = track_side[..., keep], lo[keep], hi[keep], counts[keep]
+                n_tracks = len(self._ids)
+            bounds = _chunk_bounds(counts, _CHUNK_PAIRS)
+        if len(bounds) == 2:
+            res, pt, pm = self._update_chunk(x_pred, P_pred, mu_pred, e_pred, track_side, lo, hi, z, meas_side, rho)
+            self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
+        else:
+            self._x, self._P = np.empty_like(x_pred), np.empty_like(P_pred)
+            self._mu, self._exist = np.empty_like(mu_pred), np.empty_like(e_pred)
+            pts, pms = [], []
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                res, pt, pm = self._update_chunk(x_pred[..., a:b], P_pred[..., a:b], mu_pred[:, a:b], e_pred[a:b],
+                                                 track_side[..., a:b], lo[a:b], hi[a:b], z, meas_side, rho)
+                self._x[..., a:b], self._P[..., a:b], self._mu[:, a:b] = res.x, res.P, res.mu
+                self._exist[a:b] = res.existence
+                pts.append(pt + a)
+                pms.append(pm)
+            pt, pm = np.concatenate(pts), np.concatenate(pms)
+        self._xc, self._Pc = combine(self._mu, self._x, self._P)                     # eqs. (41)-(42)
+        return pt, pm
+
+    def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, lo, hi, z, meas_side, rho):
+        """Gate and update a contiguous group of tracks (eqs. 25-40); pairs indexed within the group."""
+        cfg, d = self.config, self.d
         pt, pm = candidate_pairs(lo, hi, z)
         tg = np.take(track_side, pt, axis=-1)
         mg = np.take(meas_side, pm, axis=-1)
@@ -271,11 +331,16 @@ class ImmIpdaTracker:
             pt, pm, in_gate, innov = pt[keep], pm[keep], in_gate[:, keep], innov.select(keep)
         res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho[pm],
                           cfg.detection.probability, cfg.detection.gate_probability)  # eqs. (28)-(40)
-        self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
-        self._xc, self._Pc = combine(res.mu, res.x, res.P)                           # eqs. (41)-(42)
-        return pt, pm
+        return res, pt, pm
 
-    def _manage(self, rep: StepReport) -> None:
+    def _keep(self, keep: np.ndarray) -> None:
+        """Keep only the tracks ``keep`` (bool mask) in every per-track array."""
+        self._ids, self._exist, self._confirmed = self._ids[keep], self._exist[keep], self._confirmed[keep]
+        self._x, self._P, self._mu = self._x[..., keep], self._P[..., keep], self._mu[:, keep]
+        self._xc, self._Pc = self._xc[:, keep], self._Pc[..., keep]
+        self._outside_since = self._outside_since[keep]
+
+    def _manage(self, rep: StepReport, t: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
         xc, Pc = self._xc, self._Pc
         pxx, pxy, pyy = Pc[0, 0], Pc[0, 1], Pc[1, 1]
@@ -289,6 +354,13 @@ class ImmIpdaTracker:
         rep.confirmed = int(np.count_nonzero(newly))
         alive = finite & (self._exist >= cfg.terminate) & (major <= self.config.track.max_position_std ** 2)
         rep.terminated = int(np.count_nonzero(finite & ~alive))
+        if coverage is not None:
+            inside = coverage.contains(xc[:2])
+            since = np.where(inside, np.nan, np.where(np.isnan(self._outside_since), t, self._outside_since))
+            self._outside_since = since
+            gone = alive & (t - since >= self.config.track.outside_time)    # NaN (inside) compares False
+            alive &= ~gone
+            rep.left_coverage = int(np.count_nonzero(gone))
         n_conf = int(np.count_nonzero(self._confirmed & alive))
         if self.config.track.merge_threshold > 0 and (rep.confirmed or n_conf > 1):
             # Duplicates are born while a target's first track is tentative (its measurements are
@@ -299,16 +371,9 @@ class ImmIpdaTracker:
                                    self._ids[idx], self.config.track.merge_threshold)
             alive[idx[dup]] = False
             rep.merged = int(np.count_nonzero(dup))
-        if np.count_nonzero(alive) > self.config.track.max_tracks:
-            idx = np.flatnonzero(alive)
-            cap = excess_tracks(self._exist[idx], self._confirmed[idx], self.config.track.max_tracks)
-            alive[idx[cap]] = False
-            rep.capped = int(np.count_nonzero(cap))
         self._alive = alive
         if not alive.all():
-            self._ids, self._exist, self._confirmed = self._ids[alive], self._exist[alive], self._confirmed[alive]
-            self._x, self._P, self._mu = self._x[..., alive], self._P[..., alive], self._mu[:, alive]
-            self._xc, self._Pc = self._xc[:, alive], self._Pc[..., alive]
+            self._keep(alive)
 
     def _initiate(self, z: np.ndarray, R: np.ndarray) -> None:
         k = len(z)
@@ -324,6 +389,7 @@ class ImmIpdaTracker:
         self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
         self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
         self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
+        self._outside_since = np.concatenate((self._outside_since, np.full(k, np.nan)))
 
     def _new_ids(self, k: int) -> np.ndarray:
         if self._next_id + k <= _ID_SPACE and not self._wrapped:
@@ -362,3 +428,17 @@ class ImmIpdaTracker:
     def _fill_counts(self, rep: StepReport) -> None:
         rep.n_tracks = len(self._ids)
         rep.n_confirmed = int(self._confirmed.sum())
+
+
+def _chunk_bounds(counts: np.ndarray, limit: int) -> list[int]:
+    """Boundaries splitting tracks ``0..T`` into contiguous groups whose ``counts`` sum to at most
+    ``limit`` (a single track above the limit forms its own group)."""
+    if not len(counts):
+        return [0, 0]
+    bounds = [0]
+    csum = np.cumsum(counts)
+    while bounds[-1] < len(counts):
+        a = bounds[-1]
+        base = csum[a - 1] if a else 0
+        bounds.append(max(int(np.searchsorted(csum, base + limit, side='right')), a + 1))
+    return bounds
