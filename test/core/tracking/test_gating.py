@@ -46,6 +46,10 @@ def test_candidate_pairs_are_exactly_the_boxes_contents(monkeypatch, strips):
         track, meas = candidate_pairs(lo, hi, z)
         assert sorted(zip(track.tolist(), meas.tolist())) == brute_pairs(lo, hi, z)
         assert np.all(np.diff(track) >= 0), 'pairs must come sorted by track'
+        counts = gating.candidate_counts(lo, hi, z)
+        assert counts.shape == (T,) and np.all(counts >= np.bincount(track, minlength=T)), \
+            'candidate_counts must bound the pairs of every track'
+        assert counts.sum() <= T * N
 
 
 def test_candidate_pairs_edge_cases_of_the_strip_search(monkeypatch):
