@@ -1,14 +1,19 @@
-"""IMM-IPDA tracker speed (issue 5), against Stone Soup 1.9.1 on identical detections.
+"""IMM-IPDA tracker speed (issues 5, 19, 24), against Stone Soup 1.9.1 on identical detections.
 
-Scenario: one constant-velocity target seen with P_D 0.9 and Poisson clutter uniform over
-1000 m x 1000 m, N clutter detections per scan on average, one scan per second, measurement
-covariance diag(25, 25) m^2; the same seeded detections for every tracker. Each repeat times one
-scan (``tracker.step``, including gating, update, initiation and track management) after a
-warm-up that lets the track population settle; the table gives the median over scans.
+Scenario: K constant-velocity targets (``tK`` cases; one in the ``cN`` cases) seen with P_D 0.9
+and Poisson clutter uniform over 1000 m x 1000 m, N clutter detections per scan on average (20 in
+the ``tK`` cases), one scan per second, measurement covariance diag(25, 25) m^2; the same seeded
+detections for every tracker. Each repeat times one scan (``tracker.step``, including gating,
+update, initiation and track management) after a warm-up that lets the track population settle;
+the table gives the median over scans. ``growth`` is the exponent of time against size from the
+previous size of the same series (log ratio of medians), when both ran.
 
-* ``tracking.imm_ipda.cN``: ours, 3 modes (CV, CTR left and right), default settings with the true
-  clutter density.
-* ``tracking.stonesoup.cN``: Stone Soup 1.9.1 ``MultiTargetMixtureTracker`` with ``PDA``
+* ``tracking.imm_ipda.cN`` / ``tK``: ours, 3 modes (CV, CTR left and right), default settings
+  (the node's: initiation budget and caps) with the true clutter density.
+* ``tracking.imm_ipda.flood20000``: 20,000 uniform detections per scan over 1 km^2 for 100 scans
+  in a fresh process; every scan is a sample, and ``peak_rss_mb`` is that process's peak resident
+  memory (``resource.getrusage``), numpy and the tracker included.
+* ``tracking.stonesoup.*``: Stone Soup 1.9.1 ``MultiTargetMixtureTracker`` with ``PDA``
   (``PDAHypothesiser``: same P_D, P_G 0.99, clutter density), one CV model with the same process
   noise, ``MultiMeasurementInitiator`` (2 points, GNN with a 3-sigma Mahalanobis gate, prior
   velocity variance as ours), tracks deleted after 3 scans without an update or when their
@@ -19,7 +24,9 @@ warm-up that lets the track population settle; the table gives the median over s
 from __future__ import annotations
 
 import gc
+import json
 import math
+import subprocess
 import sys
 import time
 
@@ -27,8 +34,11 @@ import numpy as np
 
 from ..bench import Case, Result, register
 
-CLUTTER = (20, 50, 100, 200, 400)
-STONESOUP = (20, 400)
+CLUTTER = (0, 20, 100, 1000, 10000)
+TARGETS = (1, 10, 50, 200)
+STONESOUP = ('c20', 't10')
+FLOOD = 20000
+FLOOD_SCANS = 100
 P_D = 0.9
 HALF = 500.0
 R0 = np.diag([25.0, 25.0])
@@ -38,19 +48,29 @@ STONESOUP_VERSION = '1.9.1'
 MISSING = f'SKIPPED: stonesoup not installed (pip install -r requirements-bench.txt for stonesoup=={STONESOUP_VERSION})'
 
 
-def scans(n_clutter: int, n_scans: int, seed: int = 7) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
-    """``(t, z, R, rho)`` per scan: the target (with probability P_D) and Poisson clutter."""
+def scans(n_clutter: int, n_scans: int, seed: int = 7, n_targets: int = 1
+          ) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
+    """``(t, z, R, rho)`` per scan: the targets (each with probability P_D) and Poisson clutter.
+
+    Targets start on a grid over the square and move at 4.5 m/s in directions spread over the
+    circle; every 200 scans they start again. ``R`` is a read-only broadcast of ``R0``.
+    """
     rng = np.random.default_rng(seed)
-    rho = n_clutter / (2 * HALF) ** 2
-    start, vel = np.array([-400.0, -200.0]), np.array([4.0, 2.0])
+    rho = max(n_clutter, 1) / (2 * HALF) ** 2
+    side = math.ceil(math.sqrt(n_targets))
+    grid = (np.arange(side) + 0.5) / side * 1.6 * HALF - 0.8 * HALF
+    start = np.stack(np.meshgrid(grid, grid), -1).reshape(-1, 2)[:n_targets]
+    if n_targets == 1:
+        start = np.array([[-400.0, -200.0]])
+    angle = np.arctan2(2.0, 4.0) + 2 * math.pi * np.arange(n_targets) / n_targets
+    vel = math.hypot(4.0, 2.0) * np.stack((np.cos(angle), np.sin(angle)), -1)
     out = []
     for k in range(n_scans):
         clutter = rng.uniform(-HALF, HALF, (rng.poisson(n_clutter), 2))
-        parts = [clutter]
-        if rng.random() < P_D:
-            parts.insert(0, (start + vel * (k % 200))[None] + rng.multivariate_normal([0.0, 0.0], R0, 1))
-        z = np.concatenate(parts)
-        out.append((float(k), z, np.broadcast_to(R0, (len(z), 2, 2)).copy(), np.full(len(z), rho)))
+        seen = rng.random(n_targets) < P_D
+        hits = start[seen] + vel[seen] * (k % 200) + rng.multivariate_normal([0.0, 0.0], R0, int(seen.sum()))
+        z = np.concatenate((hits, clutter))
+        out.append((float(k), z, np.broadcast_to(R0, (len(z), 2, 2)), np.full(len(z), rho)))
     return out
 
 
@@ -92,7 +112,7 @@ class _Stepper:
 _STEPPERS: dict[str, _Stepper] = {}
 
 
-def _ours(n_clutter: int, name: str):
+def _ours(n_clutter: int, name: str, n_targets: int = 1, n_scans: int = 400):
     def make():
         from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig
         cfg = TrackerConfig.from_flat({'detection.probability': P_D, 'clutter.source': 'detection',
@@ -101,13 +121,55 @@ def _ours(n_clutter: int, name: str):
         def step(tracker, scan):
             tracker.step(*scan)
             return tracker.n_tracks
-        stepper = _Stepper(lambda: ImmIpdaTracker(cfg), step, scans(n_clutter, 400), warmup=40)
+        stepper = _Stepper(lambda: ImmIpdaTracker(cfg), step, scans(n_clutter, n_scans, n_targets=n_targets),
+                           warmup=40)
         _STEPPERS[name] = stepper
         return stepper
     return make
 
 
-def _stonesoup(n_clutter: int, name: str, warmup: int):
+def flood_child(n: int, n_scans: int) -> None:
+    """Run in a fresh process: ``n`` uniform detections per scan for ``n_scans`` scans; print JSON
+    with the seconds per scan and the process's peak RSS [MB]."""
+    import resource
+
+    from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig
+    rng = np.random.default_rng(19)
+    tracker = ImmIpdaTracker(TrackerConfig.from_flat({'clutter.source': 'detection'}))
+    rho = np.full(n, n / (2 * HALF) ** 2)
+    R = np.broadcast_to(R0, (n, 2, 2))
+    seconds, pairs, tracks = [], [], []
+    for k in range(n_scans):
+        z = rng.uniform(-HALF, HALF, (n, 2))
+        t0 = time.perf_counter()
+        tracker.step(float(k), z, R, rho)
+        seconds.append(time.perf_counter() - t0)
+        pairs.append(tracker.report.n_pairs)
+        tracks.append(tracker.n_tracks)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0       # kB on Linux
+    print(json.dumps({'seconds': seconds, 'peak_rss_mb': rss, 'max_pairs': max(pairs), 'max_tracks': max(tracks)}))
+
+
+_FLOOD: dict = {}
+
+
+def _flood(n: int, n_scans: int):
+    def make():
+        def run() -> list[float]:
+            code = f'from {__name__} import flood_child; flood_child({n}, {n_scans})'
+            done = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, check=True)
+            _FLOOD.update(json.loads(done.stdout.strip().splitlines()[-1]))
+            return _FLOOD['seconds']
+        return run
+    return make
+
+
+def _flood_derived(r: Result) -> dict:
+    return {'peak_rss_mb': _FLOOD.get('peak_rss_mb', math.nan), 'max_pairs': _FLOOD.get('max_pairs', math.nan),
+            'max_tracks': _FLOOD.get('max_tracks', math.nan), 'max_ms': r.max_s * 1e3}
+
+
+def _stonesoup(n_clutter: int, name: str, warmup: int, n_targets: int = 1):
     def make():
         try:
             import stonesoup
@@ -117,7 +179,7 @@ def _stonesoup(n_clutter: int, name: str, warmup: int):
         if stonesoup.__version__ != STONESOUP_VERSION:
             print(f'  {name}: stonesoup {stonesoup.__version__} installed, the comparison was set up for '
                   f'{STONESOUP_VERSION}', file=sys.stderr)
-        data = _stonesoup_scans(n_clutter, warmup + 60)
+        data = _stonesoup_scans(n_clutter, warmup + 60, n_targets)
         rho = n_clutter / (2 * HALF) ** 2
 
         def step(tracker, scan):
@@ -128,7 +190,7 @@ def _stonesoup(n_clutter: int, name: str, warmup: int):
     return make
 
 
-def _stonesoup_scans(n_clutter: int, n_scans: int):
+def _stonesoup_scans(n_clutter: int, n_scans: int, n_targets: int = 1):
     from datetime import datetime, timedelta
 
     from stonesoup.models.measurement.linear import LinearGaussian
@@ -136,7 +198,7 @@ def _stonesoup_scans(n_clutter: int, n_scans: int):
     model = LinearGaussian(ndim_state=4, mapping=(0, 2), noise_covar=R0)
     t0 = datetime(2025, 1, 1)
     out = []
-    for t, z, _, _ in scans(n_clutter, n_scans):
+    for t, z, _, _ in scans(n_clutter, n_scans, n_targets=n_targets):
         ts = t0 + timedelta(seconds=t)
         out.append((ts, {Detection(np.array([[a], [b]]), timestamp=ts, measurement_model=model) for a, b in z}))
     return out
@@ -180,28 +242,55 @@ def _stonesoup_tracker(data, rho):
     return iter(tracker)
 
 
-def _derived(name: str, n_clutter: int):
+_MEDIANS: dict[str, float] = {}
+
+
+def _derived(name: str, n_detections: float, previous: str | None = None, size_ratio: float = 1.0):
     def derived(r: Result) -> dict:
         stepper = _STEPPERS.get(name)
         if stepper is None or math.isnan(r.median_s):
             return {'note': MISSING}
-        return {'us_per_detection': r.median_s * 1e6 / (n_clutter + P_D),
-                'tracks': float(np.mean(stepper.tracks)) if stepper.tracks else math.nan}
+        _MEDIANS[name] = r.median_s
+        out = {'us_per_detection': r.median_s * 1e6 / max(n_detections, 1.0),
+               'tracks': float(np.mean(stepper.tracks)) if stepper.tracks else math.nan}
+        if previous in _MEDIANS:
+            out['growth'] = math.log(r.median_s / _MEDIANS[previous]) / math.log(size_ratio)
+        return out
     return derived
 
 
+_prev = None
 for _n in CLUTTER:
     _name = f'tracking.imm_ipda.c{_n}'
     register(Case(
-        name=_name, group='tracking', make=_ours(_n, _name), self_timed=True, repeats=150,
-        compare_to=f'tracking.stonesoup.c{_n}' if _n in STONESOUP else None,
-        limit_s={20: 0.5e-3, 400: 5e-3}.get(_n), derived=_derived(_name, _n),
+        name=_name, group='tracking', make=_ours(_n, _name, n_scans=400 if _n <= 1000 else 200), self_timed=True,
+        repeats=150, compare_to='tracking.stonesoup.c20' if _n == 20 else None,
+        limit_s={20: 0.35e-3, 10000: 0.1}.get(_n),
+        derived=_derived(_name, _n + P_D, _prev if _prev and _n >= 1000 else None, _n / max(_prev_n, 1)
+                         if _prev else 1.0),
         description=f'IMM-IPDA, 3 modes: one scan, 1 CV target (P_D 0.9) + {_n} clutter/scan over 1 km^2 (core)'))
+    _prev, _prev_n = _name, _n
 
-for _n, _warm, _reps in ((20, 30, 30), (400, 6, 5)):
-    _name = f'tracking.stonesoup.c{_n}'
+_prev = None
+for _k in TARGETS:
+    _name = f'tracking.imm_ipda.t{_k}'
     register(Case(
-        name=_name, group='tracking', make=_stonesoup(_n, _name, _warm), self_timed=True, repeats=_reps,
-        derived=_derived(_name, _n),
+        name=_name, group='tracking', make=_ours(20, _name, n_targets=_k), self_timed=True, repeats=150,
+        compare_to='tracking.stonesoup.t10' if _k == 10 else None, limit_s=3e-3 if _k == 200 else None,
+        derived=_derived(_name, 20 + P_D * _k, _prev, _k / _prev_k if _prev else 1.0),
+        description=f'IMM-IPDA, 3 modes: one scan, {_k} CV targets (P_D 0.9) + 20 clutter/scan over 1 km^2 (core)'))
+    _prev, _prev_k = _name, _k
+
+register(Case(
+    name=f'tracking.imm_ipda.flood{FLOOD}', group='tracking', make=_flood(FLOOD, FLOOD_SCANS), self_timed=True,
+    repeats=1, derived=_flood_derived,
+    description=f'IMM-IPDA, default settings: {FLOOD} uniform detections/scan over 1 km^2 for {FLOOD_SCANS} scans, '
+                'fresh process (time per scan; peak RSS of that process)'))
+
+for _tag, _n, _k, _warm, _reps in (('c20', 20, 1, 30, 30), ('t10', 20, 10, 10, 15)):
+    _name = f'tracking.stonesoup.{_tag}'
+    register(Case(
+        name=_name, group='tracking', make=_stonesoup(_n, _name, _warm, _k), self_timed=True, repeats=_reps,
+        derived=_derived(_name, _n + P_D * _k),
         description=f'Stone Soup {STONESOUP_VERSION} MultiTargetMixtureTracker + PDA + MultiMeasurementInitiator, '
-                    f'same detections ({_n} clutter/scan)'))
+                    f'same detections ({_k} targets, {_n} clutter/scan)'))
