@@ -6,7 +6,8 @@
   (eqs. 17-20, 41-42), :mod:`.kalman` prediction (eqs. 22-23),
 * :mod:`.gating` gates and likelihoods (eqs. 25-28), :mod:`.ipda` the update (eqs. 28-40),
 * :mod:`.measurements` input checks, :mod:`.management` initiation, confirmation, termination,
-* :mod:`.coverage` the area a scan covered, :mod:`.config` settings, :mod:`.tracker` the tracker that wires them together.
+* :mod:`.coverage` the area a scan covered, :mod:`.config` settings, :mod:`.tracker` the tracker
+  that wires them together.
 
 Array layout. The per-track arrays of :mod:`.imm`, :mod:`.kalman`, :mod:`.gaussian`,
 :mod:`.ipda` and the per-pair arrays of :mod:`.gating` are component-major with tracks (or

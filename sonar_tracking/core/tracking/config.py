@@ -114,11 +114,7 @@ class TrackConfig(Config):
                                       'it no longer follows anything', unit='m', low=0.0, high=1e9, low_open=True)
     max_tracks: int = setting(5000, 'most tracks kept after each scan (new ones included); beyond, the least '
                               'likely tentative tracks are dropped', low=1, high=10_000_000)
-    max_tentative: int = setting(1000, 'most tentative tracks kept after each scan (new ones included); beyond, '
-                                 'the least likely go: in clutter a tentative track lives until its existence '
-                                 'decays, so without this the tentative tracks grow with births x lifetime',
-                                 low=1, high=10_000_000)
-    max_pairs: int = setting(250_000, 'most track-detection candidate pairs per scan; beyond, the tentative '
+    max_pairs: int = setting(100_000, 'most track-detection candidate pairs per scan; beyond, the tentative '
                              'tracks with the most candidates (densest clutter) are dropped first, then '
                              'confirmed ones', low=1, high=1_000_000_000)
     outside_time: float = setting(10.0, 'a track whose estimate has been outside the sensor coverage passed to '

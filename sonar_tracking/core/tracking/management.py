@@ -31,17 +31,18 @@ that start tracks are chosen by how likely they are to be a new target:
 When fewer detections are unused than the budget (the paper's scenarios), every one starts a
 track, which is the paper's one-point initiation.
 
-Caps (not in the paper). After initiation, at most ``track.max_tentative`` tentative tracks and
-``track.max_tracks`` tracks in all are kept (the least likely tentative ones go,
-:func:`excess_tracks`). The tentative cap is what bounds a flood: in uniform clutter a tentative
-track's existence only decays by ``existence.survival`` per scan on average (eq. 33 gives
-``E[Lambda] = 1`` without a target), so it lives ``ln(initial/terminate)/-ln(survival)`` scans (35
-with the defaults) and the tentative tracks would grow to births x lifetime; capped, new tracks
-(existence ``initial``) replace the old tentative ones whose existence has decayed below it. Before the update, the candidate pairs
+Caps (not in the paper). After initiation, at most ``track.max_tracks`` tracks are kept (the
+least likely tentative ones go, :func:`excess_tracks`). Before the update, the candidate pairs
 (detections inside a track's gate box) are counted; beyond ``track.max_pairs`` the tracks with
 the most candidates are dropped, tentative before confirmed (:func:`pair_budget`): a gate holding
-thousands of detections carries no information about a target. Together these bound the tracks,
-the pairs and so the memory and time of a scan for any input.
+many detections carries little information about a target, and the IPDA's existence of such a
+track barely moves (without a target, eq. 33 gives ``E[Lambda] = 1``, so in clutter a tentative
+track lives ``ln(initial/terminate) / -ln(survival)`` scans, 35 with the defaults). The cap is
+on pairs rather than on tentative tracks because pairs are what cost: a wide sector with
+hundreds of sparse clutter detections per scan (the paper's Scenario 1 at tau = 2) keeps
+thousands of tentative tracks but only about 2,000 pairs, and is not touched. Together the
+budget and the caps bound the tracks, the pairs and so the memory and time of a scan for any
+input.
 
 Confirmation: a track is confirmed the first time its existence exceeds ``T_c`` and stays
 confirmed until it is terminated (the paper's FTD counts confirmed tracks per scan). Termination:

@@ -23,10 +23,9 @@ The output never holds a NaN: a track whose estimate stops being finite is remov
 (``report.dropped_numerical``).
 
 Work and memory per scan are bounded for any input (see :mod:`~sonar_tracking.core.tracking.management`
-for the rules): at most ``init.max_per_scan`` tracks start per scan, at most ``track.max_tentative``
-tentative and ``track.max_tracks`` tracks in all are kept, at most ``track.max_pairs`` candidate pairs are formed, and the pairs are
-processed in chunks of at most ``_CHUNK_PAIRS`` (tracks are independent IPDAs, so chunking
-changes no result), so the per-pair arrays never exceed a fixed size.
+for the rules): at most ``init.max_per_scan`` tracks start per scan, at most ``track.max_tracks``
+tracks are kept, at most ``track.max_pairs`` candidate pairs are formed, and they are processed in chunks of at most ``_CHUNK_PAIRS`` (tracks are
+independent IPDAs, so chunking changes no result): the per-pair arrays never exceed a fixed size.
 
 Coverage (optional, not in the paper): ``step(..., coverage=...)`` takes the polar window the
 scan covered (:class:`~sonar_tracking.core.tracking.coverage.Coverage`); a track whose estimate
@@ -254,15 +253,8 @@ class ImmIpdaTracker:
         self._initiate(z[born], R[born])
         rep.initiated = len(born)
         rep.not_initiated = int(np.count_nonzero(unused)) - len(born)
-        cap = np.zeros(len(self._ids), dtype=bool)
-        tentative = np.flatnonzero(~self._confirmed)
-        if len(tentative) > cfg.track.max_tentative:
-            cap[tentative[excess_tracks(self._exist[tentative], self._confirmed[tentative],
-                                        cfg.track.max_tentative)]] = True
-        if len(self._ids) - np.count_nonzero(cap) > cfg.track.max_tracks:
-            kept = np.flatnonzero(~cap)
-            cap[kept[excess_tracks(self._exist[kept], self._confirmed[kept], cfg.track.max_tracks)]] = True
-        if cap.any():
+        if len(self._ids) > cfg.track.max_tracks:
+            cap = excess_tracks(self._exist, self._confirmed, cfg.track.max_tracks)
             rep.capped = int(np.count_nonzero(cap))
             self._keep(~cap)
         self._t = t

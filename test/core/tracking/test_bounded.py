@@ -66,15 +66,15 @@ def test_duplicates_screened_spatially_equal_the_dense_test():
 def test_a_flood_of_detections_is_bounded_and_keeps_working():
     """20,000 uniform detections per scan: tracks, pairs and the cost stay within the caps."""
     rng = np.random.default_rng(5)
-    cfg = config(**{'init.max_per_scan': 300, 'track.max_tentative': 400, 'track.max_pairs': 30_000})
+    cfg = config(**{'init.max_per_scan': 300, 'track.max_tracks': 2000, 'track.max_pairs': 30_000})
     trk = ImmIpdaTracker(cfg)
     for k in range(6):
         z = rng.uniform(-500, 500, (20_000, 2))
         out = trk.step(float(k), z, None, np.full(len(z), 0.02))
         rep = trk.report
-        assert rep.initiated <= 300 and len(out) <= 400 and rep.n_pairs <= 30_000
+        assert rep.initiated <= 300 and len(out) <= 2000 and rep.n_pairs <= 30_000
         assert rep.initiated + rep.not_initiated == 20_000 or k > 0
-    assert rep.pair_capped > 0 and rep.capped > 0 and rep.not_initiated > 0
+    assert rep.pair_capped > 0 and rep.not_initiated > 0
     # Concentrated: every detection inside every gate; the pair cap holds.
     for k in range(6, 9):
         out = trk.step(float(k), rng.normal(0, 3, (20_000, 2)), None, np.full(20_000, 0.02))
@@ -86,7 +86,7 @@ def test_the_budget_does_not_bind_in_sparse_scans():
     """With fewer unused detections than the budget every one starts a track (the paper's rule)."""
     rng = np.random.default_rng(8)
     a, b = ImmIpdaTracker(), ImmIpdaTracker(config(**{'init.max_per_scan': 10_000_000,
-                                                      'track.max_tentative': 10_000_000}))
+                                                      'track.max_pairs': 1_000_000_000}))
     for k in range(15):
         z = rng.uniform(-1000, 1000, (40, 2))
         ra, rb = a.step(float(k), z), b.step(float(k), z)
