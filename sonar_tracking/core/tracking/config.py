@@ -98,6 +98,10 @@ class InitConfig(Config):
 
     speed_max: float = setting(15.0, 'largest target speed; each velocity component of a new track has '
                                'mean 0 and variance speed_max^2 / 3', unit='m/s', low=0.0, high=1e4, low_open=True)
+    exclude: str = setting('all', 'detections validated by these tracks start no track: confirmed = the paper\'s '
+                           'one-point initiation (every detection no confirmed track validated), all = also '
+                           'those in a tentative track\'s gate (tentative tracks grow with the area covered, not '
+                           'with the clutter)', choices=('all', 'confirmed'))
     max_per_scan: int = setting(1000, 'most tracks started per scan; when more detections are unused, those no '
                                 'track validated come first, then the lowest clutter density (see management); '
                                 'the paper studies set it high enough never to bind', low=0, high=10_000_000)

@@ -1,7 +1,8 @@
 """Track management: one-point initiation, confirmation, termination, duplicates, a cap.
 
-Initiation (one-point, with a velocity prior). Every measurement that no confirmed track
-validated (eq. 25) starts a tentative track at the measurement with velocity mean zero and
+Initiation (one-point, with a velocity prior). Every measurement that no track validated
+(eq. 25; with ``init.exclude: confirmed``, the paper's rule: no confirmed track) starts a
+tentative track at the measurement with velocity mean zero and
 variance ``speed_max^2 / 3`` per component (the moments of a component uniform on
 ``[-speed_max, speed_max]``; Musicki & Song, "Track initialization: prior target velocity and
 acceleration moments", IEEE TAES 2013). We chose it over two-point differencing because:
@@ -15,6 +16,15 @@ acceleration moments", IEEE TAES 2013). We chose it over two-point differencing 
   measurement and need no memory;
 * ``P_{0|0} = diag(R, speed_max^2/3 I)`` is well defined, which false-track discrimination
   (eqs. 47-48) needs.
+
+Which measurements start tracks (``init.exclude``, not in the paper). With ``confirmed`` a
+measurement inside a tentative track's gate starts one more track, so every clutter detection
+does: tentative tracks grow with the clutter and, their gates holding more detections the denser
+it is, the pairs with its square. With ``all`` (the default) a measurement some track already
+validated starts none: that track is already testing the hypothesis that a target is there, and
+PDA moves it to the target if one is. Tentative tracks then cover the surveillance area once
+(about its area over a new track's gate area, however dense the clutter), and the pairs grow
+with the clutter. Measured on the paper's scenarios, in docs/tracker_scaling.md.
 
 Initiation budget (not in the paper). One-point initiation starts a track on every unused
 detection, and each new track's gate is wide (the velocity prior), so in dense clutter the next
@@ -97,10 +107,10 @@ def one_point_initiation(z: np.ndarray, R: np.ndarray, speed_max: float, n_modes
 
 
 def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarray,
-                        confirmed: np.ndarray) -> np.ndarray:
-    """Mask of measurements that no confirmed track validated (these start new tracks)."""
+                        tracks: np.ndarray) -> np.ndarray:
+    """Mask of measurements that no track in the mask ``tracks`` validated (these may start tracks)."""
     used = np.zeros(n_meas, dtype=bool)
-    used[pair_meas[confirmed[pair_track]]] = True
+    used[pair_meas[tracks[pair_track]]] = True
     return ~used
 
 

@@ -248,7 +248,8 @@ class ImmIpdaTracker:
             new_index = np.cumsum(alive) - 1
             sel = alive[pair_track]
             pair_track, pair_meas = new_index[pair_track[sel]], pair_meas[sel]
-        unused = unused_measurements(len(z), pair_track, pair_meas, self._confirmed)
+        exclude = self._confirmed if cfg.init.exclude == 'confirmed' else np.ones(len(self._ids), dtype=bool)
+        unused = unused_measurements(len(z), pair_track, pair_meas, exclude)
         born = birth_measurements(unused, pair_meas, rho, cfg.init.max_per_scan)
         self._initiate(z[born], R[born])
         rep.initiated = len(born)

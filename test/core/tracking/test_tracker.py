@@ -197,18 +197,25 @@ def test_a_clutter_only_track_decays_and_is_terminated():
     assert mean[1] < 0.5 and mean[3] < mean[1] and mean[10] < 0.05
 
 
-def test_one_target_gives_one_confirmed_track_and_duplicates_are_removed():
+@pytest.mark.parametrize('exclude', ['confirmed', 'all'])
+def test_one_target_gives_one_confirmed_track_and_duplicates_are_removed(exclude):
+    """With the paper's initiation (exclude: confirmed) the target's detections start more tracks
+    while its first is tentative and they are merged away; with exclude: all none are started."""
     rng = np.random.default_rng(22)
     truth, scans = cluttered_scans(rng, 30, 0.0, pd=1.0)
-    trk = ImmIpdaTracker(config(**{'clutter.source': 'constant', 'clutter.density': 1e-5}))
-    merged = 0
+    trk = ImmIpdaTracker(config(**{'clutter.source': 'constant', 'clutter.density': 1e-5, 'init.exclude': exclude}))
+    merged = initiated = 0
     for s in scans:
         out = trk.step(*s)
         merged += trk.report.merged
+        initiated += trk.report.initiated
     conf = out[out['confirmed'] == 1]
     assert len(conf) == 1 and len(out) == 1
     assert math.hypot(conf['x'][0] - truth[-1, 0], conf['y'][0] - truth[-1, 1]) < 15
-    assert merged > 0, 'tracks started while the first was tentative must have been merged away'
+    if exclude == 'confirmed':
+        assert merged > 0, 'tracks started while the first was tentative must have been merged away'
+    else:
+        assert merged == 0 and initiated == 1
 
 
 def test_output_records():
