@@ -15,8 +15,12 @@ from dataclasses import dataclass
 from ..config import Config, ConfigError, setting
 
 __all__ = ['ImmConfig', 'DetectionConfig', 'ClutterConfig', 'ExistenceConfig', 'InitConfig', 'TrackConfig',
-           'TrackerConfig', 'MODE_NAMES']
+           'TrackerConfig', 'MODE_NAMES', 'PAPER_INITIATION']
 
+#: The paper's one-point initiation (a track from every detection no confirmed track validated);
+#: studies reproducing the ESC paper merge this into their settings (the default, ``all``, starts
+#: none from a detection a tentative track validated: bounded in clutter, lower CTTR in dense clutter).
+PAPER_INITIATION = {'init.exclude': 'confirmed'}
 #: Mode names the tracker knows; ``TRACK_DTYPE`` has one probability field per name.
 MODE_NAMES = ('cv', 'ccw', 'cw')
 #: Mode sets ``imm.models`` accepts: any non-empty subset, in the order above.
