@@ -114,6 +114,10 @@ def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarr
     return ~used
 
 
+# Up to this many (confirmed, track) combinations the position test runs on all of them.
+_DENSE_DUPLICATES = 4096
+
+
 def birth_measurements(unused: np.ndarray, validated: np.ndarray, rho: np.ndarray, budget: int) -> np.ndarray:
     """Indices (ascending) of the unused measurements that start tracks, at most ``budget``.
 
@@ -160,18 +164,20 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     conf = np.flatnonzero(confirmed)
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
-    pos = x[:2].T                                                       # (T, 2)
-    half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
-    reach = half[conf] + half.max(axis=0)
-    ci, tj = candidate_pairs(pos[conf] - reach, pos[conf] + reach, pos)
-    ci = conf[ci]
-    other = ci != tj
-    ci, tj = ci[other], tj[other]
+    if len(conf) * n <= _DENSE_DUPLICATES:
+        # Few tracks: the position test on every (confirmed, track) pair costs fewer numpy calls.
+        ci, tj = np.repeat(conf, n), np.tile(np.arange(n), len(conf))
+    else:
+        pos = x[:2].T                                                       # (T, 2)
+        half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
+        reach = half[conf] + half.max(axis=0)
+        ci, tj = candidate_pairs(pos[conf] - reach, pos[conf] + reach, pos)
+        ci = conf[ci]
     dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
     a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
     with np.errstate(divide='ignore', invalid='ignore'):
         d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
-    near = d2 < threshold
+    near = (d2 < threshold) & (ci != tj)
     ci, tj = ci[near], tj[near]
     if len(ci) == 0:
         return drop

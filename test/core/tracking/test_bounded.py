@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from sonar_tracking.core.tracking import Coverage, ImmIpdaTracker, TrackerConfig, TrackingInputError
+from sonar_tracking.core.tracking import management
 from sonar_tracking.core.tracking import tracker as tracker_module
 from sonar_tracking.core.tracking.management import birth_measurements, duplicate_tracks, pair_budget
 
@@ -48,7 +49,9 @@ def dense_duplicates(x, P, confirmed, ids, thr):
     return drop
 
 
-def test_duplicates_screened_spatially_equal_the_dense_test():
+@pytest.mark.parametrize('dense_up_to', [0, 10**9])
+def test_duplicates_screened_spatially_equal_the_dense_test(monkeypatch, dense_up_to):
+    monkeypatch.setattr(management, '_DENSE_DUPLICATES', dense_up_to)     # box screen / all pairs
     rng = np.random.default_rng(3)
     for trial in range(40):
         n = int(rng.integers(2, 120))
