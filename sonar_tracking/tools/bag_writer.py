@@ -3,7 +3,7 @@
 :class:`BagWriter` extends the ``rosbags`` writer (same connections, CDR bytes and message
 definitions) with what a recorder in the field needs:
 
-* **MCAP** files are written chunk by chunk. Every flush (a timer of the recorder, or a chunk
+* **MCAP** files are written chunk by chunk, each with its CRC. Every flush (a timer of the recorder, or a chunk
   reaching 1 MiB) writes the chunk, its message indexes and an *open tail* (a DataEnd record and
   a footer without summary) in one ``pwrite`` at the end of the data, then ``fsync``. Between
   flushes the file on disk is therefore a complete MCAP file that every reader (``rosbags``,
@@ -32,6 +32,8 @@ from __future__ import annotations
 import errno
 import os
 import sqlite3
+import struct
+import zlib
 from collections import defaultdict
 from contextlib import suppress
 from dataclasses import dataclass, field
@@ -125,6 +127,14 @@ class _Staged:
     def tell(self) -> int:
         return self.base + self.buf.tell()
 
+    def patch(self, offset: int, data: bytes) -> None:
+        """Overwrite staged bytes at file offset ``offset``."""
+        view = self.buf.getbuffer()
+        try:
+            view[offset - self.base:offset - self.base + len(data)] = data
+        finally:
+            view.release()
+
     def commit(self, tail: bytes = OPEN_TAIL) -> None:
         """Write the staged records and ``tail`` at the end of the committed data; on failure
         cut the file back there, restore the open tail and re-raise."""
@@ -193,7 +203,10 @@ class _McapFile(McapWriter):
     def close_chunk(self) -> None:
         chunk = self.chunk
         counts = {cid: len(msgs) for cid, msgs in chunk.msgs.items()}
+        start = self.bio.tell()
         super().close_chunk()
+        # The chunk's CRC (rosbags leaves it 0): readers then know a chunk torn by a power cut.
+        self.bio.patch(start + 9 + 24, struct.pack('<I', zlib.crc32(chunk.bio.getbuffer())))
         try:
             self.bio.commit()
         except OSError:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import sqlite3
 import struct
 import warnings
+import zlib
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -174,8 +175,8 @@ def read_bag(path: str | Path, topics: list[str] | None = None) -> Iterator[BagM
         from rosbags.rosbag2 import ReaderError
         raise ReaderError(f'{state.path} cannot be read ({reason or "not a rosbag2 bag"}) and holds no MCAP or '
                           f'sqlite3 file')
-    warnings.warn((state.warning() or f'{state.path} is read record by record') + (f' ({reason})' if reason else ''),
-                  TruncatedBagWarning, stacklevel=2)
+    warnings.warn(state.warning() or f'{state.path} cannot be read as a closed bag ({reason}): reading its files '
+                  f'record by record', TruncatedBagWarning, stacklevel=2)
     wanted = None if topics is None else set(topics)
     for file in files:
         if file.suffix == '.db3':
@@ -217,8 +218,8 @@ class McapScan:
     channels: dict = field(default_factory=dict)
 
     def valid_end(self) -> tuple[int, int | None]:
-        """``(end, cut)`` from a walk over the record headers only."""
-        for _ in self._walk(read_chunks=False, with_messages=False):
+        """``(end, cut)`` from a walk over the records, checking each chunk's CRC."""
+        for _ in self._walk(read_chunks=False, with_messages=False, check_chunks=True):
             pass
         return self.end, self.cut
 
@@ -239,7 +240,7 @@ class McapScan:
         return (f'{self.name} is cut off at byte {self.cut} of {self.size} ({self.reason}); read the '
                 f'{self.count} messages before the cut')
 
-    def _walk(self, read_chunks: bool, with_messages: bool) -> Iterator[BagMessage]:
+    def _walk(self, read_chunks: bool, with_messages: bool, check_chunks: bool = False) -> Iterator[BagMessage]:
         f = self.f
         self.size = f.seek(0, 2)
         f.seek(0)
@@ -273,14 +274,15 @@ class McapScan:
             if op in (_OP_SCHEMA, _OP_CHANNEL) or (op == _OP_MESSAGE and with_messages):
                 f.seek(body)
                 yield from self._records(f.read(size), op, with_messages)
-            elif op == _OP_CHUNK and read_chunks:
+            elif op == _OP_CHUNK and (read_chunks or check_chunks):
                 f.seek(body)
                 try:
                     inner = _chunk_records(f.read(size))
                 except Exception as exc:  # noqa: BLE001 - any damage (bad lengths, decompression) ends the scan
                     self.cut, self.reason = pos, f'a damaged chunk ({exc})'
                     return
-                yield from self._inner(inner, with_messages)
+                if read_chunks:
+                    yield from self._inner(inner, with_messages)
             pos = self.end = body + size
 
     def _inner(self, data: bytes, with_messages: bool) -> Iterator[BagMessage]:
@@ -331,15 +333,19 @@ class McapScan:
 
 
 def _chunk_records(rec: bytes) -> bytes:
-    """The uncompressed records of a complete chunk record."""
-    uncompressed_size = struct.unpack_from('<Q', rec, 16)[0]
+    """The uncompressed records of a complete chunk record; ValueError if its CRC (when given) differs."""
+    uncompressed_size, crc = struct.unpack_from('<QI', rec, 16)
     compression, off = _string(rec, 28)
     (csize,) = struct.unpack_from('<Q', rec, off)
     payload = rec[off + 8:off + 8 + csize]
     if compression == '':
-        return payload
-    from rosbags.rosbag2.storage_mcap import decompress
-    return decompress(payload, compression, uncompressed_size, 0)
+        inner = payload
+    else:
+        from rosbags.rosbag2.storage_mcap import decompress
+        inner = decompress(payload, compression, uncompressed_size, 0)
+    if crc and zlib.crc32(inner) != crc:
+        raise ValueError('its CRC does not match its content')
+    return inner
 
 
 def _string(buf: bytes, off: int) -> tuple[str, int]:

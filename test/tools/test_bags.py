@@ -100,14 +100,13 @@ def test_metadata_is_rosbag2_version_9_as_jazzy_writes_it(tmp_path, launch):
         assert list(md) == ['name', 'type', 'serialization_format', 'offered_qos_profiles', 'type_description_hash']
         assert md['type_description_hash'].startswith('RIHS01_')
         (qos,) = md['offered_qos_profiles']
-        assert qos['reliability'] == 'reliable' and qos['history'] == 'keep_last'
+        assert qos['reliability'] == 'reliable' and qos['durability'] == 'volatile'   # the simulator's
     types = {t.name: t.msgtype for t in bag_topics(bag)}
     assert types['/sonar/sector'] == 'sensor_msgs/msg/Image'
     # rosbags reads it (it reads versions up to 9) with the same counts.
     from rosbags.rosbag2 import Reader
     with Reader(bag) as reader:
-        assert reader.message_count == 4 * n and reader.metadata['ros_distro'] == 'jazzy' if isinstance(
-            reader.metadata, dict) else reader.message_count == 4 * n
+        assert reader.message_count == 4 * n
 
 
 def test_sqlite3_storage(tmp_path, launch):
@@ -145,7 +144,8 @@ def test_cut_off_bag_is_read_up_to_the_cut_with_a_warning(tmp_path, launch):
         warnings.simplefilter('always')
         cut = list(read_bag(bag))
     msgs = [str(w.message) for w in caught if issubclass(w.category, TruncatedBagWarning)]
-    assert msgs and 'cut off' in msgs[0] and f'read the {len(cut)} messages' in msgs[0]
+    assert 'File end magic is invalid' in msgs[0]    # why rosbags does not read it
+    assert 'cut off at byte' in msgs[1] and f'read the {len(cut)} messages before the cut' in msgs[1]
     assert 0.4 * len(full) < len(cut) < len(full)
     assert [(m.topic, m.timestamp, m.data) for m in cut] == [(m.topic, m.timestamp, m.data) for m in full[:len(cut)]]
 
