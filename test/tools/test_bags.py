@@ -361,3 +361,29 @@ def test_a_full_disk_ends_the_recording_cleanly_with_a_readable_bag(tmp_path, ro
         assert len(got) > 20 and got == list(range(got[0], got[-1] + 1))
         assert info['message_count'] == len(got)
         readers_agree(bag, len(got))
+
+
+def test_split_by_duration_and_size_from_the_command_line(tmp_path, ros):
+    from rosbags.rosbag2 import Reader
+
+    from sonar_tracking.tools.bag_record import parse_size
+    assert (parse_size('100k'), parse_size('2M'), parse_size('1.5GiB'), parse_size('1000')) == (
+        100 << 10, 2 << 20, 3 << 29, 1000)
+    topic = '/bag_split_test'
+    source = Counter(ros, topic, period=0.01, size=4000)
+    try:
+        for name, opts in (('dur', ['--split-duration', '0.3']), ('size', ['--split-size', '100k'])):
+            bag = tmp_path / name
+            rec = tool('bag_record', '-o', str(bag), *opts, topic)
+            ros.wait(lambda: on_disk(bag) >= 150, 30.0, '150 messages on disk')
+            stop(rec)
+            info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+            assert len(info['relative_file_paths']) >= 4, info['relative_file_paths']
+            got, _ = numbers(bag, expect_warning=False)
+            assert got == list(range(got[0], got[-1] + 1)) and len(got) == info['message_count']
+            with Reader(bag) as reader:
+                assert reader.message_count == len(got)
+            if name == 'size':
+                assert all(p.stat().st_size < 100_000 + 20_000 for p in bag.glob('*.mcap'))
+    finally:
+        source.close()
