@@ -3,9 +3,10 @@
 :class:`BagWriter` extends the ``rosbags`` writer (same connections, CDR bytes and message
 definitions) with what a recorder in the field needs:
 
-* **MCAP** files are written chunk by chunk, each with its CRC. Every flush (a timer of the recorder, or a chunk
-  reaching 1 MiB) writes the chunk, its message indexes and an *open tail* (a DataEnd record and
-  a footer without summary) in one ``pwrite`` at the end of the data, then ``fsync``. Between
+* **MCAP** files are written chunk by chunk, each with its CRC. Every flush (a timer of the
+  recorder, or a chunk reaching 1 MiB) writes the chunk, its message indexes and an *open tail*
+  (a DataEnd record and a footer without summary) in one ``pwrite`` at the end of the data, then
+  ``fsync``. Between
   flushes the file on disk is therefore a complete MCAP file that every reader (``rosbags``,
   ``mcap``, rosbag2) reads by scanning; the next flush overwrites the tail. Closing writes the
   summary (schemas, channels, chunk indexes, statistics) in place of the tail.
@@ -382,7 +383,7 @@ class BagWriter(Writer):
     # ------------------------------------------------------------------ rosbags Writer interface
     def open(self) -> None:
         """Create the bag folder, its space reserve, its first file and its metadata."""
-        self.path.mkdir(mode=0o755, parents=True)
+        self._guard(self.path.mkdir, mode=0o755, parents=True)
         try:
             with open(self.path / RESERVE_NAME, 'wb') as f:
                 f.write(bytes(RESERVE))

@@ -199,7 +199,8 @@ class Counter:
     def __init__(self, ros, topic, period=0.01, size=2000):
         from sensor_msgs.msg import Image
         self.msg = Image(height=1, width=size, encoding='mono8', step=size, data=bytes(size))
-        self.pub = ros.node.create_publisher(Image, topic, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+        self.pub = ros.node.create_publisher(Image, topic,
+                                             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
         self.times = []
         self.timer = ros.node.create_timer(period, self.publish)
         self.ros = ros

@@ -2,8 +2,6 @@
 same bag through the core in-process, run after run, and again after ``--repeat`` wraps time back."""
 from __future__ import annotations
 
-import math
-import re
 import subprocess
 import sys
 import time
