@@ -2,8 +2,10 @@
 image, image_info and regions).
 
 A producer publishes the parts of one stamp together and stamps in increasing order, so once a stamp
-is complete, older incomplete stamps can never complete and are given up; so are the oldest ones
-once more than ``max_pending`` stamps wait. Given-up stamps are reported by :meth:`pop_dropped`.
+is complete, older incomplete stamps can never complete and are given up; so are the oldest stamps
+once more than ``max_pending`` wait, and a late part of a stamp given up for that reason is dropped
+at once (it could only push out a stamp that can still complete). Given-up stamps are reported by
+:meth:`pop_dropped`.
 """
 from __future__ import annotations
 
@@ -21,7 +23,8 @@ class StampPairer:
             raise ValueError('max_pending must be >= 1')
         self.parts = tuple(parts)
         self.max_pending = max_pending
-        self._pending: OrderedDict[int, dict[str, Any]] = OrderedDict()
+        self._pending: dict[int, dict[str, Any]] = {}
+        self._evicted: OrderedDict[int, None] = OrderedDict()   # recent stamps pushed out by max_pending
         self._dropped: list[tuple[int, tuple[str, ...]]] = []
 
     def add(self, part: str, stamp_ns: int, msg: Any) -> dict[str, Any] | None:
@@ -29,10 +32,10 @@ class StampPairer:
         (the first is reported as dropped)."""
         if part not in self.parts:
             raise ValueError(f'unknown part {part!r}; one of {list(self.parts)}')
-        frame = self._pending.get(stamp_ns)
-        if frame is None:
-            frame = self._pending[stamp_ns] = {}
-            self._pending.move_to_end(stamp_ns)
+        if stamp_ns in self._evicted:
+            self._dropped.append((stamp_ns, (part,)))
+            return None
+        frame = self._pending.setdefault(stamp_ns, {})
         if part in frame:
             self._dropped.append((stamp_ns, (part,)))  # the earlier copy is replaced
         frame[part] = msg
@@ -42,8 +45,11 @@ class StampPairer:
                 self._dropped.append((old, tuple(sorted(self._pending.pop(old)))))
             return frame
         while len(self._pending) > self.max_pending:
-            old, parts = self._pending.popitem(last=False)
-            self._dropped.append((old, tuple(sorted(parts))))
+            old = min(self._pending)
+            self._dropped.append((old, tuple(sorted(self._pending.pop(old)))))
+            self._evicted[old] = None
+            while len(self._evicted) > 4 * self.max_pending:
+                self._evicted.popitem(last=False)
         return None
 
     def pop_dropped(self) -> list[tuple[int, tuple[str, ...]]]:
@@ -58,3 +64,4 @@ class StampPairer:
     def clear(self) -> None:
         """Forget everything pending (time went back: a new recording)."""
         self._pending.clear()
+        self._evicted.clear()

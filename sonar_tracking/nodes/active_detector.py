@@ -71,7 +71,8 @@ class ActiveDetectorNode(SonarNode):
         self.create_service(SetBool, '~/esc/enable', self._srv_enable)
         self.create_service(Trigger, '~/esc/reset', self._srv_reset)
         self.pub_threshold.publish(Float64(data=self.detector.threshold))
-        self.get_logger().info(f'threshold {self.detector.threshold:g}, ESC {"on" if self.detector.enabled else "off"}, '
+        esc = 'on' if self.detector.enabled else 'off'
+        self.get_logger().info(f'threshold {self.detector.threshold:g}, ESC {esc}, '
                                f'desired clutter density {self.detector.desired_density:.3g} /m^2')
 
     def on_change(self, old: DetectorNodeConfig, new: DetectorNodeConfig) -> None:
@@ -101,9 +102,7 @@ class ActiveDetectorNode(SonarNode):
                            float(ok['y'][np.argmax(ok['existence'])])) if len(ok) else None
 
     # -- processing --------------------------------------------------------------------------
-    def _on_reset(self, back: float) -> None:
-        self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): detector restarted from '
-                                  f'threshold {self.config.threshold.initial:g}')
+    def _on_reset(self) -> None:
         self.detector.reset()
         self.best_track = None
 

@@ -81,8 +81,7 @@ class FlsFeaturesNode(SonarNode):
             self.get_logger().info('filter settings changed: the image starts again')
 
     # -- processing --------------------------------------------------------------------------
-    def _on_reset(self, back: float) -> None:
-        self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): the image starts again')
+    def _on_reset(self) -> None:
         self.processor.reset()
         self._t0_ns = None
 

@@ -26,8 +26,8 @@ Bad input never stops the node: an image of another encoding, one that does not 
 ``image_info``, holding NaN, infinite or negative values (beyond filter round-off, which is
 clipped to 0), a malformed info or region cloud, or a late stamp is logged with its reason and the
 frame dropped. A jump back in time restarts the tracker (a looping recording,
-:mod:`sonar_tracking.ros.timeline`); ids are never reused. An image without any data is no error: tracks are predicted and count the frame as a
-miss, so one empty frame never ends a healthy track.
+:mod:`sonar_tracking.ros.timeline`); ids are never reused. An image without any data is no error:
+tracks are predicted and count the frame as a miss, so one empty frame never ends a healthy track.
 """
 from __future__ import annotations
 
@@ -41,17 +41,14 @@ from sensor_msgs.msg import Image, PointCloud2
 from visualization_msgs.msg import MarkerArray
 
 import msg_adapters as ma
-from msg_adapters.map_info import map_info_to_grid
+from msg_adapters.map_info import fls_image, map_info_to_grid
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
-from sonar_tracking.ros import LATE, RESET, InputConfig, PoseConfig, PoseSource, SonarNode, TimeGuard, output_profile, run_node
+from sonar_tracking.ros import (InputConfig, PoseConfig, PoseSource, SonarNode, output_profile,
+                                 run_node)
 
-__all__ = ['GpfNodeConfig', 'GpfTrackerNode', 'check_fls_image', 'main']
-
-#: Filtering leaves round-off below zero (-1.5e-15 seen); anything further below is a bad image.
-_ROUND_OFF = 1e-6
-
+__all__ = ['GpfNodeConfig', 'GpfTrackerNode', 'main']
 
 @dataclass(frozen=True)
 class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig):
@@ -65,25 +62,8 @@ class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig):
     markers_tentative: bool = setting(False, 'draw tentative tracks in gpf/tracks/markers as well')
     marker_scale: float = setting(0.5, 'diameter of a track sphere in gpf/tracks/markers', unit='m', low=0.0,
                                   high=1e5, low_open=True)
-    max_pending: int = setting(8, 'frames kept while waiting for their image, info and regions', low=1, high=1000,
-                               read_only=True)
-
-
-def check_fls_image(image: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarray:
-    """The ``fls/image`` array as float32 (round-off negatives clipped to 0), or ValueError saying
-    what is wrong with it."""
-    if image.dtype != np.float32:
-        raise ValueError(f'fls/image must be 32FC1 (processed intensity), got {image.dtype}')
-    if image.shape != grid_shape:
-        raise ValueError(f'fls/image is {image.shape[0]} x {image.shape[1]} pixels but its image_info says '
-                         f'{grid_shape[0]} x {grid_shape[1]}')
-    bad = ~np.isfinite(image)
-    if bad.any():
-        raise ValueError(f'fls/image has {int(bad.sum())} NaN or infinite pixels; no-data pixels must be 0')
-    negative = image < -_ROUND_OFF
-    if negative.any():
-        raise ValueError(f'fls/image has {int(negative.sum())} negative pixels; intensities are >= 0')
-    return np.maximum(image, 0.0, dtype=np.float32)
+    max_pending: int = setting(32, 'frames kept while waiting for their image, info and regions (a burst of '
+                               'frames whose images lag)', low=1, high=1000, read_only=True)
 
 
 class GpfTrackerNode(SonarNode):
@@ -98,11 +78,10 @@ class GpfTrackerNode(SonarNode):
         self.tracker = GpfTracker(self.config, np.random.default_rng(self.config.seed),
                                   feature_config=self.config.features)
         self.frames = ma.StampPairer(self.PARTS, self.config.max_pending)
-        self.time = TimeGuard()
         self.origin_ns: int | None = None
         self.resets = 0
         self.processed = 0
-        inputs = self.input_qos(10)
+        inputs = self.input_qos(50)   # a burst of frames (a replay) waits instead of being overwritten
         self.subscribe(Image, 'fls/image', lambda m: self._on_part('image', m), inputs)
         self.subscribe(MapMetaData, 'fls/image_info', lambda m: self._on_part('info', m), inputs)
         self.subscribe(PointCloud2, 'fls/regions', lambda m: self._on_part('regions', m), inputs)
@@ -118,6 +97,12 @@ class GpfTrackerNode(SonarNode):
 
     def on_change(self, old: GpfNodeConfig, new: GpfNodeConfig) -> None:
         self.tracker.configure(new, new.features)
+
+    def _restart(self) -> None:
+        self.tracker.reset()
+        self.pose.clear()
+        self.origin_ns = None
+        self.resets += 1
 
     # -- inputs ------------------------------------------------------------------------------
     def _on_part(self, part: str, msg) -> None:
@@ -138,7 +123,7 @@ class GpfTrackerNode(SonarNode):
         where = f'frame at {stamp / 1e9:.3f} s'
         try:
             grid = map_info_to_grid(frame['info'])
-            image = check_fls_image(ma.image_to_array(frame['image']), grid.shape)
+            image = fls_image(frame['image'], grid.shape)
             regions = ma.cloud_to_array(frame['regions'])
             names = set(regions.dtype.names or ())
             if not {'x', 'y'} <= names:
@@ -146,18 +131,8 @@ class GpfTrackerNode(SonarNode):
         except (ma.AdapterError, ValueError) as exc:
             self.say('error', f'{where} dropped: {exc}', 'malformed')
             return
-        verdict, back = self.time.check(stamp, self.config.time_jump_reset)
-        if verdict == LATE:
-            self.say('warning', f'{where} is not newer than the last one ({self.time.last_ns / 1e9:.3f} s): dropped',
-                     'stamp_order')
+        if not self.admit(stamp, 'frame', self._restart):
             return
-        if verdict == RESET:
-            self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): the tracker starts again')
-            self.tracker.reset()
-            self.time.reset()
-            self.pose.clear()
-            self.origin_ns = None
-            self.resets += 1
         if self.origin_ns is None:
             self.origin_ns = stamp   # times relative to the first stamp keep nanosecond resolution
         t = (stamp - self.origin_ns) * 1e-9

@@ -35,12 +35,10 @@ from visualization_msgs.msg import MarkerArray
 import msg_adapters as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
-from sonar_tracking.ros import LATE, RESET, InputConfig, SonarNode, TimeGuard, output_profile, run_node
+from sonar_tracking.core.tracking.detections import detections_to_measurements
+from sonar_tracking.ros import InputConfig, SonarNode, output_profile, run_node
 
-__all__ = ['TrackerNodeConfig', 'ImmIpdaTrackerNode', 'detections_to_measurements', 'main']
-
-_COV_FIELDS = ('cov_xx', 'cov_xy', 'cov_yy')
-
+__all__ = ['TrackerNodeConfig', 'ImmIpdaTrackerNode', 'main']
 
 @dataclass(frozen=True)
 class TrackerNodeConfig(TrackerConfig, InputConfig):
@@ -53,40 +51,12 @@ class TrackerNodeConfig(TrackerConfig, InputConfig):
                                   low=0.0, high=1e5, low_open=True)
 
 
-def detections_to_measurements(records: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, str]:
-    """``(z (N, 2), R (N, 2, 2) or None, rho (N,) or None, note)`` from detection records.
-
-    Only ``x`` and ``y`` are required (``ValueError`` otherwise). Without all three covariance
-    fields ``R`` is None (the tracker then uses ``detection.sigma``), without ``clutter_density``
-    ``rho`` is None (``clutter.density``); ``note`` says which were missing.
-    """
-    names = set(records.dtype.names or ())
-    if not {'x', 'y'} <= names:
-        raise ValueError(f'detections need fields x and y; the cloud has {sorted(names)}')
-    flat = records.reshape(-1)
-    z = np.column_stack((flat['x'].astype(float), flat['y'].astype(float)))
-    notes = []
-    R = None
-    if set(_COV_FIELDS) <= names:
-        R = np.empty((len(flat), 2, 2))
-        R[:, 0, 0] = flat['cov_xx']
-        R[:, 0, 1] = R[:, 1, 0] = flat['cov_xy']
-        R[:, 1, 1] = flat['cov_yy']
-    else:
-        notes.append('no covariance fields: using detection.sigma')
-    rho = flat['clutter_density'].astype(float) if 'clutter_density' in names else None
-    if rho is None:
-        notes.append('no clutter_density field: using clutter.density')
-    return z, R, rho, '; '.join(notes)
-
-
 class ImmIpdaTrackerNode(SonarNode):
     """Runs an :class:`ImmIpdaTracker` on ``detections``."""
 
     def __init__(self, **kwargs) -> None:
         super().__init__('imm_ipda_tracker', TrackerNodeConfig(), 'imm_ipda_tracker: tracking', **kwargs)
         self.tracker = ImmIpdaTracker(self.config)
-        self.time = TimeGuard()
         self.origin_ns: int | None = None
         self.platform: tuple[float, float, float, float] | None = None
         self.rejected_rows = 0
@@ -104,6 +74,11 @@ class ImmIpdaTrackerNode(SonarNode):
     def on_change(self, old: TrackerNodeConfig, new: TrackerNodeConfig) -> None:
         if self.tracker.configure(new):
             self.get_logger().info(f'modes changed to {new.imm.models}: tracker restarted')
+
+    def _restart(self) -> None:
+        self.tracker.reset()
+        self.origin_ns = None
+        self.resets += 1
 
     # -- inputs ------------------------------------------------------------------------------
     def _on_odometry(self, msg: Odometry) -> None:
@@ -128,17 +103,8 @@ class ImmIpdaTrackerNode(SonarNode):
         if frame and frame != self.config.world_frame:
             self._warn_once(f'detections are in frame {frame!r}, tracks are published in '
                             f'{self.config.world_frame!r}: set world_frame if that is wrong')
-        verdict, back = self.time.check(stamp, self.config.time_jump_reset)
-        if verdict == LATE:
-            self.say('warning', f'detections at {stamp / 1e9:.6f} s are not newer than the last '
-                     f'({self.time.last_ns / 1e9:.6f} s): dropped', 'stamp_order')
+        if not self.admit(stamp, 'detections', self._restart):
             return
-        if verdict == RESET:
-            self.tracker.reset()
-            self.time.reset()
-            self.origin_ns = None
-            self.resets += 1
-            self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): tracker restarted')
         if self.origin_ns is None:
             self.origin_ns = stamp          # times relative to the first stamp keep nanosecond resolution
         try:

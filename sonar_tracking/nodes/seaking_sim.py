@@ -1,6 +1,7 @@
 """``seaking_sim``: the simulated scanning sonar (SeaKing 675/325 kHz or the harbour sonar).
 
-Publishes, per sector (DESIGN §4): ``sonar/sector`` (32FC1 amplitudes), ``sonar/sector_info``
+Publishes, per sector (DESIGN §4): ``sonar/sector`` (32FC1 amplitudes; mono8 dB counts with
+``output.coding: db``, as the ``*_structured`` scenarios do), ``sonar/sector_info``
 (its geometry, same header), ``sonar/fan`` (mono8 picture, painted only while someone listens),
 ``sonar/truth`` and ``platform/odometry``; and ``/clock`` whenever it stamps with simulated time.
 
@@ -30,9 +31,11 @@ import msg_adapters as ma
 from msg_adapters.odometry import pose_to_odometry
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fan import PolarCanvas, to_mono8
+from sonar_tracking.core.intensity import decode
 from sonar_tracking.core.sim import SimConfig, SimSector, Simulator, describe
 from sonar_tracking.core.sim.presets import SCENARIOS
-from sonar_tracking.ros import CLOCK_TOPIC, ConfigParameters, descriptor_for, output_profile, run_node, start_value
+from sonar_tracking.ros import (CLOCK_TOPIC, ConfigParameters, SubscriberGate, descriptor_for, output_profile,
+                                 run_node, start_value)
 
 __all__ = ['SimNodeConfig', 'SeaKingSimNode', 'main']
 
@@ -94,8 +97,9 @@ class SeaKingSimNode(Node):
 
         self.canvas = self._make_canvas()
         self.sectors = 0
-        self._matched_since: float | None = None
-        self._connected_since: float | None = None
+        c = self.config
+        self.gate = SubscriberGate(self, (self.pub_sector, self.pub_info), (self.pub_sector, self.pub_info,
+                                   self.pub_truth, self.pub_odom), c.wait_for_subscribers, c.start_settle_time)
         self._anchor()
         self.timer = self.create_timer(0.0 if self.config.rate == 0 else 0.005, self._tick)
 
@@ -127,42 +131,14 @@ class SeaKingSimNode(Node):
         self.config = new
         self._anchor()
 
-    def _ready(self) -> bool:
-        """Whether the first sector may go out (``wait_for_subscribers``).
-
-        Enough subscribers on the sector pair, and then, for ``start_settle_time`` without a change,
-        every subscriber the graph knows of on our topics connected to our publishers: discovery of
-        the other processes (announced every 250 ms with the package's DDS profile) settles first,
-        so nobody misses the start at full speed. Three seconds later the second condition is given
-        up (a subscriber of incompatible QoS never connects).
-        """
-        n = self.config.wait_for_subscribers
-        if n == 0:
-            return True
-        now = time.monotonic()
-        if min(self.pub_sector.get_subscription_count(), self.pub_info.get_subscription_count()) < n:
-            self._matched_since = self._connected_since = None
-            return False
-        self._matched_since = self._matched_since or now
-        pubs = (self.pub_sector, self.pub_info, self.pub_truth, self.pub_odom)
-        if all(p.get_subscription_count() >= self.count_subscribers(p.topic_name) for p in pubs):
-            self._connected_since = self._connected_since or now
-        else:
-            self._connected_since = None
-        settle = self.config.start_settle_time
-        settled = self._connected_since is not None and now - self._connected_since >= settle
-        return settled or now - self._matched_since > settle + 3.0
-
     def _tick(self) -> None:
         if self.sectors == 0:
-            if not self._ready():
+            if not self.gate.ready():
                 self._anchor()
                 time.sleep(0.01)  # a zero-period timer would spin the CPU while we wait
                 return
             if self.config.wait_for_subscribers:
-                counts = ', '.join(f'{p.topic_name} {p.get_subscription_count()}' for p in (
-                    self.pub_sector, self.pub_info, self.pub_truth, self.pub_odom))
-                self.get_logger().info(f'starting; subscribers: {counts}')
+                self.get_logger().info(f'starting; subscribers: {self.gate.describe()}')
         rate = self.config.rate
         if rate == 0:
             self._publish_next()
@@ -198,7 +174,7 @@ class SeaKingSimNode(Node):
     def _publish(self, s: SimSector) -> None:
         c = self.config
         stamp_ns = self._stamp_ns(s.stamp)
-        self.pub_sector.publish(ma.array_to_image(s.amplitudes, '32FC1', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
+        self.pub_sector.publish(ma.array_to_image(s.amplitudes, stamp_ns=stamp_ns, frame_id=c.sensor_frame))
         self.pub_info.publish(ma.geometry_to_scan(s.geometry, amplitudes=s.amplitudes, stamp_ns=stamp_ns,
                                                   frame_id=c.sensor_frame))
         ids, states = self.sim.truth(s.stamp)
@@ -211,7 +187,8 @@ class SeaKingSimNode(Node):
         self.pub_odom.publish(pose_to_odometry(*s.pose, vx, vy, stamp_ns=stamp_ns, frame_id=c.world_frame,
                                                child_frame_id=c.sensor_frame))
         if self.pub_fan.get_subscription_count() > 0:   # painting is most of the cost: only for a viewer
-            self.canvas.paint(s.amplitudes, s.geometry)
+            self.canvas.paint(s.amplitudes if c.output.coding != 'db' else
+                              decode(s.amplitudes, 'db', db_span=c.output.db_span, full_scale=255.0), s.geometry)
             fan = to_mono8(self.canvas.image, c.fan_dynamic_range_db)
             self.pub_fan.publish(ma.array_to_image(fan, 'mono8', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
         if self.pub_clock is not None:

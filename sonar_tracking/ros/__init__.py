@@ -7,6 +7,7 @@ and sector input (:mod:`.sector_input`). Nodes in ``sonar_tracking.nodes`` only 
 the core.
 """
 from .diagnostics import StageDiagnostics
+from .gate import SubscriberGate
 from .node import InputConfig, SonarNode
 from .params import ConfigParameters, descriptor_for, start_value
 from .pose import Pose, PoseConfig, PoseSource, check_sonar_pose
@@ -19,5 +20,5 @@ __all__ = [
     'StageDiagnostics', 'InputConfig', 'SonarNode', 'ConfigParameters', 'descriptor_for', 'start_value',
     'Pose', 'PoseConfig', 'PoseSource', 'check_sonar_pose', 'CLOCK_TOPIC', 'INPUT_QOS', 'input_profile',
     'latest_profile', 'output_profile', 'configure_dds', 'prepare_process', 'run_node', 'SectorInput',
-    'SectorInputConfig', 'LATE', 'NEW', 'RESET', 'TimeGuard',
+    'SectorInputConfig', 'LATE', 'NEW', 'RESET', 'TimeGuard', 'SubscriberGate',
 ]

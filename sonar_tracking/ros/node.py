@@ -8,6 +8,8 @@ diagnostics, and then only wires subscriptions and publishers to its core compon
 * ``self.subscribe(type, topic, callback, qos)`` wraps the callback so that an unexpected error
   costs one message, logged and counted under ``internal_error``, never the node;
 * ``self.input_qos(depth)`` is the reader profile the ``input_qos`` parameter names;
+* ``self.admit(stamp, what, on_reset)`` applies the time rule (:mod:`sonar_tracking.ros.timeline`)
+  and ``self.time.accept(stamp)`` notes a processed stamp;
 * ``self.diag`` (:class:`~sonar_tracking.ros.diagnostics.StageDiagnostics`) is published on
   ``diagnostics`` once a second; ``self.say(...)`` logs a problem at most once a second per kind.
 """
@@ -24,6 +26,7 @@ from sonar_tracking.core.config import Config, setting
 from .diagnostics import StageDiagnostics
 from .params import ConfigParameters
 from .qos import INPUT_QOS, input_profile
+from .timeline import LATE, RESET, TimeGuard
 
 __all__ = ['InputConfig', 'SonarNode']
 
@@ -47,6 +50,7 @@ class SonarNode(Node):
         super().__init__(name, **kwargs)
         self.params = ConfigParameters(self, config, on_change=self._changed, skip=skip, mutable=mutable, check=check)
         self.diag = StageDiagnostics(diag_name)
+        self.time = TimeGuard()
         self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
         self.create_timer(1.0, self._publish_diagnostics)
 
@@ -61,6 +65,23 @@ class SonarNode(Node):
     def input_qos(self, depth: int = 50):
         """The reader profile named by the ``input_qos`` parameter."""
         return input_profile(self.config.input_qos, depth)
+
+    def admit(self, stamp_ns: int, what: str, on_reset: Callable[[], None], newest: int | None = None) -> bool:
+        """Whether input ``what`` at ``stamp_ns`` is processed: a late stamp is dropped with a warning,
+        a jump back restarts the node (``on_reset()``) and is processed. ``newest``: a stamp accepted
+        but not yet processed (input waiting for its pose), compared instead of the last processed."""
+        guard = self.time if newest is None else TimeGuard(newest)
+        verdict, back = guard.check(stamp_ns, self.config.time_jump_reset)
+        if verdict == LATE:
+            self.say('warning', f'{what} at {stamp_ns / 1e9:.6f} s is not newer than the last one '
+                     f'({guard.last_ns / 1e9:.6f} s): dropped', 'stamp_order')
+            return False
+        if verdict == RESET:
+            self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): {self.get_name()} '
+                                      'starts again')
+            self.time.reset()
+            on_reset()
+        return True
 
     def subscribe(self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos) -> Any:
         """A subscription whose callback cannot take the node down (see the module docstring)."""

@@ -5,8 +5,9 @@ and hands its node one checked sector at a time, in stamp order, with the sonar 
 
 * the image and its geometry are paired by stamp; a half that never finds its partner is dropped
   with a warning;
-* a malformed pair (encoding, sizes, geometry that does not match the image) is dropped with the
-  adapter's reason;
+* a malformed pair (encoding, sizes, geometry that does not match the image or lies beyond the
+  physical bounds, values that cannot be echoes) is dropped with the reason
+  (:func:`~sonar_tracking.core.sector.check_sector`, the same verdict in every consumer);
 * stamps follow the package's time rule (:mod:`sonar_tracking.ros.timeline`): late ones are
   dropped, a big step back restarts the node (``on_reset``);
 * the pose comes from :class:`~sonar_tracking.ros.pose.PoseSource`: odometry interpolated at the
@@ -26,11 +27,10 @@ from sensor_msgs.msg import Image, LaserScan
 
 import msg_adapters as ma
 from sonar_tracking.core.config import setting
-from sonar_tracking.core.sector import SectorGeometry
+from sonar_tracking.core.sector import SectorError, SectorGeometry, check_sector
 
 from .node import InputConfig, SonarNode
 from .pose import Pose, PoseConfig, PoseSource
-from .timeline import LATE, RESET, TimeGuard
 
 __all__ = ['SectorInputConfig', 'SectorInput']
 
@@ -50,12 +50,11 @@ class SectorInput:
     working in the sensor frame).
     """
 
-    def __init__(self, node: SonarNode, on_sector: Callable[..., bool], on_reset: Callable[[float], None],
+    def __init__(self, node: SonarNode, on_sector: Callable[..., bool], on_reset: Callable[[], None],
                  use_odometry: Callable[[], bool] = lambda: True) -> None:
         self.node = node
         self.on_sector, self.on_reset, self.use_odometry = on_sector, on_reset, use_odometry
         self.pairer = ma.SectorPairer(node.config.max_pending)
-        self.time = TimeGuard()
         self._waiting: deque[tuple[int, np.ndarray, SectorGeometry, str, float]] = deque()
         qos = node.input_qos()
         self.pose = PoseSource(node, lambda: node.config, qos, lambda text: node.say('error', text, 'bad_odometry'),
@@ -85,23 +84,21 @@ class SectorInput:
     def _accept(self, pair: ma.SectorPair) -> None:
         try:
             amplitudes, geometry = ma.sector_from_messages(pair.image, pair.info)
-        except ma.AdapterError as exc:
+            intensity = getattr(self.node.config, 'intensity', None)
+            check_sector(amplitudes, geometry, intensity.coding if intensity is not None else 'linear_amplitude')
+        except (ma.AdapterError, SectorError) as exc:
             self.node.say('error', f'sector at {pair.stamp_ns / 1e9:.3f} s dropped: {exc}', 'malformed')
             return
         stamp = pair.stamp_ns
-        guard = TimeGuard(self._waiting[-1][0]) if self._waiting else self.time
-        verdict, back = guard.check(stamp, self.node.config.time_jump_reset)
-        if verdict == LATE:
-            self.node.say('warning', f'sector at {stamp / 1e9:.3f} s is not newer than the last one '
-                          f'({guard.last_ns / 1e9:.3f} s): dropped', 'stamp_order')
+        if not self.node.admit(stamp, 'sector', self._restart, self._waiting[-1][0] if self._waiting else None):
             return
-        if verdict == RESET:
-            self._waiting.clear()
-            self.pairer.clear()
-            self.pose.clear()
-            self.time.reset()
-            self.on_reset(back)
         self._waiting.append((stamp, amplitudes, geometry, pair.image.header.frame_id, time.monotonic()))
+
+    def _restart(self) -> None:
+        self._waiting.clear()
+        self.pairer.clear()
+        self.pose.clear()
+        self.on_reset()
 
     def _pose(self, stamp_ns: int, waited: float) -> Pose | None:
         return self.pose.pose_at(stamp_ns, waited) if self.use_odometry() else (0.0, 0.0, 0.0)
@@ -115,4 +112,4 @@ class SectorInput:
                 return
             self._waiting.popleft()
             if self.on_sector(stamp, amplitudes, geometry, pose, frame_id):
-                self.time.accept(stamp)
+                self.node.time.accept(stamp)
