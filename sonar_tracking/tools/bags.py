@@ -21,13 +21,13 @@ from typing import BinaryIO, Iterator
 
 import yaml
 
-from .bag_writer import MCAP_MAGIC, RECORDER_STATE
+from .bag_writer import MCAP_MAGIC, OPEN_TAIL, RECORDER_STATE
 
 __all__ = ['BagTopic', 'BagMessage', 'BagState', 'McapScan', 'TruncatedBagWarning', 'MAX_RECORD', 'bag_state',
            'read_bag', 'bag_topics', 'qos_from_rclpy', 'qos_to_rclpy']
 
 #: Largest MCAP record read into memory; a longer one is taken as damage (the file is cut there).
-MAX_RECORD = 1 << 30
+MAX_RECORD = 1 << 28
 _OP_HEADER, _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_DATA_END = 1, 2, 3, 4, 5, 6, 0x0F
 
 
@@ -63,18 +63,21 @@ class BagState:
     metadata: dict | None            # rosbag2_bagfile_information, None when missing or unreadable
     state: str | None                # custom_data.recorder_state; None for bags of other recorders
     single: bool = False             # one storage file given instead of a bag folder
+    open_tail: bool = False          # that file is an MCAP file ending without a summary
 
     @property
     def closed(self) -> bool:
         """The recorder ended the bag (or another tool wrote it): ``rosbags`` reads it as it is."""
         wal = any(Path(f'{f}-wal').exists() for f in self.files if f.suffix == '.db3')
-        return not wal and (self.single or (self.metadata is not None
-                                            and (self.state is None or not self.state.startswith('recording'))))
+        return not wal and (self.single and not self.open_tail
+                            or (self.metadata is not None
+                                and (self.state is None or not self.state.startswith('recording'))))
 
     def warning(self) -> str:
         """Why this bag may end before its recording did ('' for a bag closed normally)."""
         if self.single:
-            return ''
+            return (f'{self.path} ends without a summary (its recorder did not close it): read up to its last '
+                    f'complete chunk' if self.open_tail else '')
         if self.metadata is None:
             return (f'{self.path} has no readable metadata.yaml (its recorder was killed at once, or it is not a '
                     f'rosbag2 folder): reading its files up to their last complete record')
@@ -85,6 +88,8 @@ class BagState:
         dt = self.metadata.get('duration', {}).get('nanoseconds', 0)
         if self.state and self.state.startswith('recording'):
             what = 'was not closed by its recorder (killed, or power lost, or still recording)'
+        elif self.state in (None, 'closed'):
+            what = 'has an sqlite3 write-ahead log left by a writer that did not close it'
         else:
             what = f'ended early ({self.state})'
         return (f'{self.path} {what}: read up to the last complete chunk of each file; its metadata, rewritten at '
@@ -100,7 +105,8 @@ def bag_state(path: str | Path) -> BagState:
     """Files, metadata and recorder state of a bag folder (or of one ``.mcap`` / ``.db3`` file)."""
     path = Path(path)
     if path.is_file():
-        return BagState(path, 'sqlite3' if path.suffix == '.db3' else 'mcap', [path], None, None, single=True)
+        return BagState(path, 'sqlite3' if path.suffix == '.db3' else 'mcap', [path], None, None, single=True,
+                        open_tail=path.suffix == '.mcap' and _ends_open(path))
     info = None
     try:
         info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
@@ -119,6 +125,18 @@ def bag_state(path: str | Path) -> BagState:
     custom = (info or {}).get('custom_data') or {}
     state = custom.get(RECORDER_STATE) if isinstance(custom, dict) else None
     return BagState(path, storage, files, info, state)
+
+
+def _ends_open(path: Path) -> bool:
+    """The MCAP file ends with the open tail of a recorder that has not closed it (no summary)."""
+    try:
+        with open(path, 'rb') as f:
+            if f.seek(0, 2) < len(OPEN_TAIL) + 8:
+                return False
+            f.seek(-len(OPEN_TAIL), 2)
+            return f.read() == OPEN_TAIL
+    except OSError:
+        return False
 
 
 def _file_index(p: Path) -> tuple:

@@ -112,6 +112,9 @@ def test_a_killed_writer_leaves_every_flushed_message(tmp_path, storage):
     assert [t.name for t in bag_topics(bag)] == [TOPIC]
     if storage == 'mcap':
         assert rosbags_numbers(bag) == flushed and mcap_numbers(bag) == flushed   # as it is, no repair
+        (file,) = bag.glob('*.mcap')          # the file alone: no metadata, but it says it was not closed
+        got, said = numbers(file)
+        assert got == flushed and 'ends without a summary' in said[0]
     assert repair(bag)
     assert metadata(bag)['custom_data']['recorder_state'].startswith('repaired')
     assert rosbags_numbers(bag) == flushed and numbers(bag)[0] == flushed
