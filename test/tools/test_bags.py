@@ -63,9 +63,17 @@ def record_sim(tmp_path, launch, name, sim_params, storage='mcap', topics=SIM_TO
     sim.wait(timeout)
     err = sim.stderr.read()
     n = int(re.search(r'finished after (\d+) sectors', err).group(1))
-    time.sleep(1.0)
+    # One message per sector on each topic: wait until the recorder has flushed them all.
+    wait_until(lambda: on_disk(bag) >= len(topics) * n, 20.0, f'{len(topics) * n} messages in the bag')
     stop(rec)
     return bag, n
+
+
+def wait_until(predicate, timeout, what):
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, f'timed out after {timeout} s waiting for {what}'
+        time.sleep(0.02)
 
 
 @pytest.mark.slow
@@ -124,7 +132,7 @@ def test_latched_topic_recorded_as_transient_local(tmp_path, ros):
     bag = tmp_path / 'latched'
     rec = tool('bag_record', '-o', str(bag), '/test_latched')
     wait_recording(rec, ['/test_latched'])
-    time.sleep(1.0)
+    wait_until(lambda: on_disk(bag) >= 1, 20.0, 'the latched message in the bag')
     stop(rec)
     ros.node.destroy_publisher(pub)
     (topic,) = bag_topics(bag)
