@@ -214,6 +214,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error('-o/--output is required (or --repair BAG)')
     if args.flush_interval <= 0:
         parser.error('--flush-interval must be > 0')
+    if args.depth < 1:
+        parser.error('--depth must be >= 1')
     if args.output.exists():
         print(f'error: {args.output} exists already; bag_record never overwrites', file=sys.stderr)
         return 2

@@ -505,6 +505,8 @@ def repair(bag: Path | str) -> list[str]:
     from .bags import bag_state, McapScan
     bag = Path(bag)
     state = bag_state(bag)
+    if not any(f.exists() for f in state.files):
+        raise FileNotFoundError(f'{bag} holds no MCAP or sqlite3 file')
     if state.closed:
         return []
     done = []
