@@ -352,17 +352,19 @@ class McapScan:
 
 def _chunk_records(rec: bytes) -> bytes:
     """The uncompressed records of a complete chunk record; ValueError if its CRC (when given) differs."""
-    uncompressed_size, crc = struct.unpack_from('<QI', rec, 16)
+    start, end, uncompressed_size, crc = struct.unpack_from('<QQQI', rec, 0)
     compression, off = _string(rec, 28)
     (csize,) = struct.unpack_from('<Q', rec, off)
-    payload = rec[off + 8:off + 8 + csize]
+    if off + 8 + csize != len(rec):
+        raise ValueError('its sizes do not add up')
+    payload = rec[off + 8:]
     if compression == '':
         inner = payload
     else:
         from rosbags.rosbag2.storage_mcap import decompress
         inner = decompress(payload, compression, uncompressed_size, 0)
-    if crc and zlib.crc32(inner) != crc:
-        raise ValueError('its CRC does not match its content')
+    if len(inner) != uncompressed_size or (crc and zlib.crc32(inner) != crc):
+        raise ValueError('its size or CRC does not match its content')
     return inner
 
 
