@@ -229,3 +229,24 @@ def test_topics_filter_and_a_folder_without_metadata(tmp_path, typestore):
     assert numbers(tmp_path / 'b', topics=['/other'])[0] == []
     with pytest.raises(Exception, match='holds no MCAP or sqlite3 file'):
         list(read_bag(tmp_path))   # a folder that is not a bag
+
+
+def test_bytes_damaged_anywhere_after_the_header_cost_a_tail_never_a_crash(tmp_path, typestore):
+    """Seeded random byte changes (as bad sectors or a torn page would make them): read_bag gives the
+    messages before the first damaged record, in order; after repair rosbags reads the same."""
+    write_bag(tmp_path / 'whole', typestore, n=300, close=False).abort()
+    (mcap,) = (tmp_path / 'whole').glob('*.mcap')
+    original = mcap.read_bytes()
+    rng = np.random.default_rng(11)
+    for k in range(40):
+        data = bytearray(original)
+        for p in rng.integers(64, len(data), int(rng.integers(1, 6))):     # past magic and header
+            data[p] = (data[p] + int(rng.integers(1, 256))) % 256
+        bag = tmp_path / f'damaged{k}'
+        shutil.copytree(tmp_path / 'whole', bag)
+        next(bag.glob('*.mcap')).write_bytes(bytes(data))
+        got, _ = numbers(bag)
+        assert got == list(range(len(got))), k
+        repair(bag)
+        after = rosbags_numbers(bag)
+        assert after == got, k
