@@ -25,6 +25,7 @@ import argparse
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
 
 __all__ = ['main', 'BagRecorder']
@@ -74,6 +75,8 @@ class BagRecorder:
             self._subscribe(topic, PACKAGE_TOPICS[topic], None)
         self.discover()
         self.timer = node.create_timer(0.5, self.discover)
+        self.flush_interval = flush_interval
+        self.next_flush = time.monotonic() + flush_interval
         self.flush_timer = node.create_timer(flush_interval, self.flush)
 
     def discover(self) -> None:
@@ -136,6 +139,8 @@ class BagRecorder:
                 self._fail(exc)
                 return
             self.counts[topic] += 1
+        if time.monotonic() >= self.next_flush:      # due, even while callbacks queue ahead of the timer
+            self.flush()
 
     def flush(self) -> None:
         """Put everything received so far on disk (timer callback)."""
@@ -143,6 +148,7 @@ class BagRecorder:
         with self.lock:
             if self.closed or self.failure:
                 return
+            self.next_flush = time.monotonic() + self.flush_interval
             try:
                 self.writer.flush()
             except BagWriteError as exc:

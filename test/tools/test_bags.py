@@ -242,11 +242,13 @@ def numbers(bag, expect_warning=True):
 
 
 def on_disk(bag):
-    """Messages the bag's metadata counts (rewritten by the recorder at every flush)."""
+    """Messages the bag's metadata counts (rewritten by the recorder at every flush); read with a
+    pattern, not a YAML parser, to keep the polling light for the publisher in this process."""
     try:
-        return yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']['message_count']
-    except (OSError, TypeError, KeyError, yaml.YAMLError):
+        m = re.search(r'^  message_count: (\d+)$', (bag / 'metadata.yaml').read_text(), re.M)
+    except OSError:
         return 0
+    return int(m.group(1)) if m else 0
 
 
 def readers_agree(bag, n):
@@ -274,7 +276,7 @@ def readers_agree(bag, n):
 def test_kill_9_at_random_moments_loses_at_most_the_last_second(tmp_path, ros):
     """20 seeded trials (MCAP and sqlite3 alternately, five recorders at a time): each recorder is killed
     once the bag on disk holds N messages and K more were published (N, K seeded); every bag replays,
-    without gaps, to within a second of the kill."""
+    without gaps, and lacks at most the last second of messages."""
     rng = np.random.default_rng(21)
     topic = '/bag_kill_test'
     source = Counter(ros, topic)
@@ -307,16 +309,18 @@ def test_kill_9_at_random_moments_loses_at_most_the_last_second(tmp_path, ros):
         assert 'not closed by its recorder' in said[0]
         assert got and got == list(range(got[0], got[-1] + 1)), f'trial {i}: gaps or disorder'
         assert len(got) >= t['n']
+        # At most the last second of messages lost: at most the last 100 the 100 Hz publisher sent. Counted
+        # in messages, not wall time: a shared machine that stalls every process for seconds (seen at load
+        # 11 on 2 cores) delays publisher and recorder alike.
         lost = t['published'] - 1 - got[-1]
-        lost_s = t['killed'] - source.times[got[-1]]
-        # Every message published more than a second before the kill is in the bag.
-        assert all(s <= got[-1] for s, when in enumerate(source.times) if when < t['killed'] - 1.0), (i, lost, lost_s)
         direct = readers_agree(t['bag'], len(got))
-        report.append((t['storage'], len(got), lost, round(lost_s, 3), direct == len(got)))
+        report.append((t['storage'], len(got), lost, round(t['killed'] - source.times[got[-1]], 3),
+                       direct == len(got), lost <= 100))
     print(f'\n20 kill trials in {elapsed:.1f} s; (storage, kept, lost, last kept before the kill [s], rosbags read '
-          f'it as it was):')
+          f'it as it was, at most 1 s of messages lost):')
     for r in report:
         print('  ', r)
+    assert all(r[-1] for r in report), report
 
     # bag_replay plays a killed bag of each storage, all of it.
     from sensor_msgs.msg import Image
