@@ -37,11 +37,13 @@ class TruncatedBagWarning(UserWarning):
 
 @dataclass(frozen=True)
 class BagTopic:
-    """A recorded topic: name, ROS type, offered QoS profiles (rosbags ``Qos`` records)."""
+    """A recorded topic: name, ROS type, offered QoS profiles (rosbags ``Qos`` records), and the
+    message definition text the bag carries for its type ('' if none)."""
 
     name: str
     msgtype: str
     qos: tuple = ()
+    msgdef: str = ''
 
 
 @dataclass(frozen=True)
@@ -156,7 +158,8 @@ def bag_topics(path: str | Path) -> list[BagTopic]:
     if state.closed:
         try:
             with _reader(state.path) as reader:
-                return [BagTopic(c.topic, c.msgtype, tuple(c.ext.offered_qos_profiles)) for c in reader.connections]
+                return [BagTopic(c.topic, c.msgtype, tuple(c.ext.offered_qos_profiles), c.msgdef.data or '')
+                        for c in reader.connections]
         except (ReaderError, OSError):
             pass
     topics: dict[str, BagTopic] = {}
@@ -327,9 +330,12 @@ class McapScan:
 
     def _records(self, rec: bytes, op: int, with_messages: bool) -> Iterator[BagMessage]:
         try:
-            if op == _OP_SCHEMA:
+            if op == _OP_SCHEMA:       # id, name, encoding, data
                 (sid,) = struct.unpack_from('<H', rec, 0)
-                self.schemas[sid] = _string(rec, 2)[0]
+                name, off = _string(rec, 2)
+                _, off = _string(rec, off)
+                (dlen,) = struct.unpack_from('<I', rec, off)
+                self.schemas[sid] = (name, bytes(rec[off + 4:off + 4 + dlen]).decode('utf8', 'replace'))
             elif op == _OP_CHANNEL:
                 from rosbags.rosbag2.storage_mcap import get_qos
                 cid, sid = struct.unpack_from('<HH', rec, 0)
@@ -340,7 +346,8 @@ class McapScan:
                     qos = tuple(get_qos(rec[off + 4:off + 4 + mlen]))
                 except Exception:  # noqa: BLE001 - a damaged QoS entry should not lose the channel
                     qos = ()
-                self.channels[cid] = BagTopic(topic, self.schemas.get(sid, ''), qos)
+                name, text = self.schemas.get(sid, ('', ''))
+                self.channels[cid] = BagTopic(topic, name, qos, text)
             elif op == _OP_MESSAGE and with_messages:
                 cid, _, log_time, _ = struct.unpack_from('<HIQQ', rec, 0)
                 if cid in self.channels:
@@ -390,13 +397,17 @@ def _sqlite_topics(file: Path) -> dict[int, BagTopic]:
     from rosbags.rosbag2.metadata import parse_qos
     con = _sqlite(file)
     try:
+        try:
+            msgdefs = dict(con.execute('SELECT topic_type, encoded_message_definition FROM message_definitions'))
+        except sqlite3.Error:          # schema versions before 4 have no definitions
+            msgdefs = {}
         out = {}
         for tid, name, msgtype, qos in con.execute('SELECT id, name, type, offered_qos_profiles FROM topics'):
             try:
                 parsed = tuple(parse_qos(qos))
             except Exception:  # noqa: BLE001 - a damaged QoS entry should not lose the topic
                 parsed = ()
-            out[tid] = BagTopic(name, msgtype, parsed)
+            out[tid] = BagTopic(name, msgtype, parsed, msgdefs.get(msgtype, ''))
         return out
     finally:
         con.close()

@@ -7,6 +7,7 @@ Subcommands:
   scenario2        ESC paper Scenario 2 (§5.2): manoeuvring target, two clutter regions
   desired-density  ESC paper Algorithm 1 (§4): the desired clutter density for an SNR
   select-features  FLS paper §3: GRNN feature selection by SFS or SBS on simulated tank regions
+  structure        confirmed tracks on static structure (walls, seabed, piles, ringdown), with and without rejection
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ __all__ = ['main', 'build_parser']
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand (their modules load only when run)."""
-    from . import bench, esc_eval, fls_eval, select_features, track_csv
+    from . import bench, esc_eval, fls_eval, select_features, structure_eval, track_csv
     parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].replace('``', ''),
                                      epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -45,6 +46,10 @@ def build_parser() -> argparse.ArgumentParser:
                        'sea-trial preset, CLE by method')
     fls_eval.add_arguments(p)
     p.set_defaults(handler=fls_eval.main_args)
+    p = sub.add_parser('structure', help='confirmed tracks on static structure of the structured scenes, with and '
+                       'without rejection, and the targets against the structure-free twin')
+    structure_eval.add_arguments(p)
+    p.set_defaults(handler=structure_eval.main_args)
     return parser
 
 
