@@ -12,7 +12,8 @@ previous size of the same series (log ratio of medians), when both ran.
   (the node's: initiation budget and caps) with the true clutter density.
 * ``tracking.imm_ipda.flood20000``: 20,000 uniform detections per scan over 1 km^2 for 100 scans
   in a fresh process; every scan is a sample, and ``peak_rss_mb`` is that process's peak resident
-  memory (``resource.getrusage``), numpy and the tracker included.
+  memory (``VmHWM`` on Linux, else ``resource.getrusage``, whose figure can be the forking
+  parent's), Python, numpy and the tracker included.
 * ``tracking.stonesoup.*``: Stone Soup 1.9.1 ``MultiTargetMixtureTracker`` with ``PDA``
   (``PDAHypothesiser``: same P_D, P_G 0.99, clutter density), one CV model with the same process
   noise, ``MultiMeasurementInitiator`` (2 points, GNN with a 3-sigma Mahalanobis gate, prior
@@ -147,6 +148,12 @@ def flood_child(n: int, n_scans: int) -> None:
         pairs.append(tracker.report.n_pairs)
         tracks.append(tracker.n_tracks)
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0       # kB on Linux
+    try:
+        # ru_maxrss survives exec, so it can be the forking parent's; VmHWM belongs to this process image.
+        with open('/proc/self/status') as f:
+            rss = next(float(line.split()[1]) for line in f if line.startswith('VmHWM:')) / 1024.0
+    except (OSError, StopIteration, ValueError):
+        pass
     print(json.dumps({'seconds': seconds, 'peak_rss_mb': rss, 'max_pairs': max(pairs), 'max_tracks': max(tracks)}))
 
 
