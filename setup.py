@@ -17,6 +17,7 @@ CONSOLE_SCRIPTS = [
     'sonar_stack = sonar_tracking.tools.sonar_stack:main',
     'bag_record = sonar_tracking.tools.bag_record:main',
     'bag_replay = sonar_tracking.tools.bag_replay:main',
+    'sonar_view = sonar_tracking.tools.sonar_view:main',
 ]
 
 setup(

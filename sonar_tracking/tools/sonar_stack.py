@@ -27,13 +27,15 @@ Every child's output is printed line by line prefixed with its name. Ctrl-C or S
 SIGINT to every child and waits up to 5 s in all before killing what is left; children also get
 SIGTERM from the kernel if the stack itself dies (Linux ``PR_SET_PDEATHSIG``), so none is left
 behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none),
-started first; nodes with ``wait_for`` then also wait for the recorder to listen.
+started first; nodes with ``wait_for`` then also wait for the recorder to listen. ``--view``
+likewise starts ``sonar_view`` first (``--view "ARGS"`` passes it options) and waits for it.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import shlex
 import signal
 import subprocess
 import sys
@@ -199,7 +201,7 @@ class _GraphProbe:
         self.context.try_shutdown()
 
 
-def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0) -> int:
+def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0, view: str | None = None) -> int:
     """Start the children, watch them, stop them; returns the stack's exit status."""
     lock = threading.Lock()
     stop = threading.Event()
@@ -220,6 +222,10 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0)
                 for topic in config.record_topics:
                     spec.wait_for[topic] = spec.wait_for.get(topic, 0) + 1
         specs.insert(0, recorder)
+    if view is not None:  # the view listens to every pipeline topic: waited topics get one more listener
+        specs.insert(0, NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore', extra_args=shlex.split(view)))
+        for spec in specs:
+            spec.wait_for = {topic: n + 1 for topic, n in spec.wait_for.items()}
     children = []
     graph = _GraphProbe() if any(s.wait_for for s in specs) else None
     try:
@@ -278,6 +284,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='sonar_stack', description=__doc__.split('\n\n')[0])
     parser.add_argument('--config', type=Path, required=True, help='stack YAML file (see config/stack_*.yaml)')
     parser.add_argument('--record', type=Path, default=None, metavar='DIR', help='also record a bag into DIR')
+    parser.add_argument('--view', nargs='?', const='', default=None, metavar='ARGS',
+                        help='also run sonar_view, the browser view (ARGS: its options, quoted)')
     args = parser.parse_args(argv)
     try:
         config = load_stack(args.config)
@@ -287,7 +295,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.record is not None and args.record.exists():
         print(f'error: {args.record} exists already', file=sys.stderr)
         return 2
-    return run(config, args.record)
+    if args.view is not None and not _has_view():
+        from sonar_tracking.tools.sonar_view import MISSING
+        print(f'error: {MISSING}', file=sys.stderr)
+        return 2
+    return run(config, args.record, view=args.view)
+
+
+def _has_view() -> bool:
+    import importlib.util
+    return importlib.util.find_spec('rerun') is not None
 
 
 if __name__ == '__main__':
