@@ -304,7 +304,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _has_view() -> bool:
     import importlib.util
-    return importlib.util.find_spec('rerun') is not None
+    try:
+        return importlib.util.find_spec('rerun') is not None
+    except (ImportError, ValueError):
+        return False
 
 
 if __name__ == '__main__':

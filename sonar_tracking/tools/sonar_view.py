@@ -180,7 +180,7 @@ def _show_live(scene, rec, url: str | None, ros_args: list[str]) -> int:
 
             def destroy_node(self) -> None:
                 scene.finish()
-                self.get_logger().info(_summary(scene))
+                print(f'[sonar_view] {_summary(scene)}', flush=True)  # the context may be shut down: no rosout
                 super().destroy_node()
 
         return ViewNode()

@@ -7,14 +7,14 @@ Rerun 2-D view points its vertical axis down):
   painting as ``/sonar/fan``) at the platform pose from ``platform/odometry`` (else ``sonar_pose``);
 * ``map/fls_image``: the FLS front end's processed image, placed by its ``fls/image_info``;
 * ``map/detections``, ``map/regions`` (labelled ``R<id>``), ``map/truth/{points,tails}``;
-* ``map/tracks/<status>/{points,tails,velocity,covariance}`` for the IMM-IPDA tracks and
-  ``map/gpf/<status>/...`` for the GPF tracks, ``<status>`` = ``confirmed`` (green / blue) or
-  ``tentative`` (grey), the velocity arrow spanning ``arrow_seconds``, the covariance ellipse
-  ``n_sigma`` standard deviations (:func:`msg_adapters.covariance_ellipse`); confirmed tracks are
-  labelled ``T<id>`` and draw their tails (a clutter-rich scene has hundreds of tentative ones).
+* ``map/tracks/confirmed/{points,tails,velocity,covariance}`` (green) and
+  ``map/tracks/tentative/points`` (grey) for the IMM-IPDA tracks, ``map/gpf/...`` (blue) for the
+  GPF tracks: points labelled ``T<id>``, the velocity arrow spanning ``arrow_seconds``, the
+  covariance ellipse ``n_sigma`` standard deviations (:func:`msg_adapters.covariance_ellipse`).
+  Tentative tracks are small grey points only: a clutter-rich scene has hundreds.
 
-Time plots under ``plots/``: ``threshold``, ``clutter_density`` and ``counts/*`` (confirmed and
-tentative tracks, detections, regions). Everything is logged on the ``stamp`` timeline (header
+Time plots under ``plots/``: ``threshold``, ``clutter_density``, ``confirmed/{imm_ipda,gpf}``
+(confirmed tracks) and ``counts/*`` (tentative tracks, detections, regions per message). Everything is logged on the ``stamp`` timeline (header
 stamps; the Float64 threshold and density take the stamp of the last ``detections``, which the
 detector publishes just before them), so a bag scrubs in sensor time. A message that does not
 decode is counted in :attr:`SceneLogger.errors` and dropped; per-message work and memory are
@@ -73,7 +73,8 @@ def blueprint(bounds: tuple[float, float, float, float] | None = None) -> rrb.Bl
             rrb.Vertical(
                 rrb.TimeSeriesView(origin='plots/threshold', name='detection threshold'),
                 rrb.TimeSeriesView(origin='plots/clutter_density', name='clutter density [1/m^2]'),
-                rrb.TimeSeriesView(origin='plots/counts', name='tracks, detections, regions per scan'),
+                rrb.TimeSeriesView(origin='plots/confirmed', name='confirmed tracks'),
+                rrb.TimeSeriesView(origin='plots/counts', name='tentative tracks, detections, regions'),
             ),
             column_shares=[3, 2]),
         collapse_panels=True)
@@ -128,8 +129,8 @@ class SceneLogger:
             'detections': self._detections,
             'detector/threshold': lambda m: self._scalar('plots/threshold', m),
             'detector/clutter_density': lambda m: self._scalar('plots/clutter_density', m),
-            'tracks': lambda m: self._tracks('tracks', 'map/tracks', 'plots/counts/tracks', m),
-            'gpf/tracks': lambda m: self._tracks('gpf/tracks', 'map/gpf', 'plots/counts/gpf_tracks', m),
+            'tracks': lambda m: self._tracks('tracks', 'map/tracks', 'imm_ipda', m),
+            'gpf/tracks': lambda m: self._tracks('gpf/tracks', 'map/gpf', 'gpf', m),
             'fls/image': lambda m: self._fls_image(self._fls.add_image(m)),
             'fls/image_info': lambda m: self._fls_image(self._fls.add_info(m)),
             'fls/regions': self._regions,
@@ -165,10 +166,10 @@ class SceneLogger:
         series = {
             'plots/threshold': ('threshold', (230, 60, 60)),
             'plots/clutter_density': ('clutter density', (70, 120, 255)),
-            'plots/counts/tracks/confirmed': ('IMM-IPDA confirmed', _CONFIRMED['tracks']),
-            'plots/counts/tracks/tentative': ('IMM-IPDA tentative', _TENTATIVE),
-            'plots/counts/gpf_tracks/confirmed': ('GPF confirmed', _CONFIRMED['gpf/tracks']),
-            'plots/counts/gpf_tracks/tentative': ('GPF tentative', (120, 120, 200)),
+            'plots/confirmed/imm_ipda': ('IMM-IPDA', _CONFIRMED['tracks']),
+            'plots/confirmed/gpf': ('GPF', _CONFIRMED['gpf/tracks']),
+            'plots/counts/tentative/imm_ipda': ('IMM-IPDA tentative', _TENTATIVE),
+            'plots/counts/tentative/gpf': ('GPF tentative', (120, 120, 200)),
             'plots/counts/detections': ('detections', (255, 160, 0)),
             'plots/counts/regions': ('FLS regions', (255, 0, 200)),
         }
@@ -296,6 +297,7 @@ class SceneLogger:
                                                         radii=rr.Radius.ui_points(1.5), draw_order=8.0))
 
     def _tracks(self, topic: str, base: str, plot: str, msg: Any) -> None:
+        # ``plot``: the tracker's name under plots/confirmed and plots/counts/tentative.
         tracks = self._records(msg, ('track_id', 'x', 'y', 'vx', 'vy', 'cov_xx', 'cov_xy', 'cov_yy'))
         confirmed = tracks['confirmed'] != 0 if 'confirmed' in tracks.dtype.names else np.ones(len(tracks), bool)
         self._update_tails(topic, tracks['track_id'], tracks)
@@ -304,21 +306,22 @@ class SceneLogger:
             sel = tracks[mask]
             xy = _xy(sel)
             path = f'{base}/{status}'
-            full = status == 'confirmed'  # a clutter-rich scene has hundreds of tentative tracks: no labels, no tails
+            full = status == 'confirmed'  # a clutter-rich scene has hundreds of tentative tracks: points only
             self.rec.log(f'{path}/points', rr.Points2D(
-                xy, radii=rr.Radius.ui_points(5.0 if full else 2.5), colors=[color],
+                xy, radii=rr.Radius.ui_points(5.0 if full else 2.0), colors=[color],
                 labels=[f'T{int(i)}' for i in sel['track_id']] if full else None, show_labels=full, draw_order=20.0))
             if full:
+                vel = (np.column_stack([sel['vx'], -sel['vy']]) * self.arrow_seconds).astype(np.float32)
+                self.rec.log(f'{path}/velocity', rr.Arrows2D(origins=xy, vectors=vel, colors=[color],
+                                                             radii=rr.Radius.ui_points(1.5), draw_order=16.0))
                 self.rec.log(f'{path}/tails', rr.LineStrips2D(
                     [np.array(tails[int(i)], np.float32) for i in sel['track_id']], colors=[color],
                     radii=rr.Radius.ui_points(1.5), draw_order=15.0))
-            vel = (np.column_stack([sel['vx'], -sel['vy']]) * self.arrow_seconds).astype(np.float32)
-            self.rec.log(f'{path}/velocity', rr.Arrows2D(origins=xy, vectors=vel, colors=[color],
-                                                         radii=rr.Radius.ui_points(1.5 if full else 1.0), draw_order=16.0))
-            self.rec.log(f'{path}/covariance', rr.LineStrips2D(
-                [self._ellipse(r) for r in sel], colors=[(*color, 180 if full else 90)],
-                radii=rr.Radius.ui_points(1.0), draw_order=14.0))
-            self.rec.log(f'{plot}/{status}', rr.Scalars(float(mask.sum())))
+                self.rec.log(f'{path}/covariance', rr.LineStrips2D(
+                    [self._ellipse(r) for r in sel], colors=[(*color, 180)], radii=rr.Radius.ui_points(1.0),
+                    draw_order=14.0))
+            counts = f'plots/confirmed/{plot}' if full else f'plots/counts/tentative/{plot}'
+            self.rec.log(counts, rr.Scalars(float(mask.sum())))
 
     def _ellipse(self, r: np.void) -> np.ndarray:
         major, minor, yaw = ma.covariance_ellipse(float(r['cov_xx']), float(r['cov_xy']), float(r['cov_yy']),
