@@ -164,7 +164,8 @@ def _start_view(out: Path) -> subprocess.Popen | None:
         return None
     log = out / 'sonar_view.log'
     with log.open('w') as f:
-        proc = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.tools.sonar_view', '--grpc-port',
+        # --always: the whole run stays in the view, for a browser opened during or after it.
+        proc = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.tools.sonar_view', '--always', '--grpc-port',
                                  str(_free_port(9876)), '--web-port', str(_free_port(9090))],
                                 stdout=f, stderr=subprocess.STDOUT, start_new_session=True,
                                 env=dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1'))

@@ -9,7 +9,13 @@ namespaced pipeline) and logs what arrives (:mod:`sonar_tracking.tools.view.scen
 scrubs it in time. The view is Rerun's: the SDK hosts a gRPC server (``--grpc-port``) holding the
 recording (up to ``--memory-limit``, oldest data dropped first) and serves its web viewer over
 HTTP (``--web-port``), both on 127.0.0.1 only; the address to open is printed as
-``view: http://...``. Nothing is sent anywhere while no browser is connected. ``--save FILE.rrd``
+``view: http://...``. A live view logs only while a viewer is connected to its server
+(:func:`viewer_connected`, checked twice a second): with no browser open it takes its messages
+serialized and drops them, which costs the pipeline nothing measurable (``sonar_eval bench
+view``), and a browser shows the run from the moment it connects. ``--always`` (implied by ``--save``) logs
+everything, so a browser opened later sees the run from its start. The record topics are taken
+best effort (``--qos``): the view adds no acknowledgements to the pipeline's reliable writers and
+never slows them; its bounded queues drop the oldest messages when it falls behind. ``--save FILE.rrd``
 also writes the recording to a file (open it later with ``rerun FILE.rrd``); ``--no-serve`` only
 writes the file. Rerun is an extra: without it, the program says to run ``make view``.
 """
@@ -50,6 +56,12 @@ def _parser() -> argparse.ArgumentParser:
                    help='sonar pose in the world when no platform/odometry arrives (default 0 0 0)')
     p.add_argument('--tail', type=int, default=40, help='points per track tail (default 40)')
     p.add_argument('--arrow-seconds', type=float, default=10.0, help='time span of velocity arrows (default 10 s)')
+    p.add_argument('--qos', choices=('best_effort', 'reliable'), default='best_effort',
+                   help='QoS of the record topics (default best_effort: the view never slows a publisher; '
+                   'reliable: every message, for tests). Images are always best effort.')
+    p.add_argument('--always', action='store_true',
+                   help='log every message, also while no browser is connected (so one opened later shows the '
+                   'run from its start); --save implies it')
     return p
 
 
@@ -101,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.bag is not None:
             return _show_bag(args, scene, rec, url)
-        return _show_live(scene, rec, url, ros_args)
+        gate = None if args.always or args.save is not None or args.no_serve else args.grpc_port
+        return _show_live(scene, rec, url, ros_args, args.qos, gate)
     finally:
         rec.flush()
         rec.disconnect()
@@ -148,12 +161,33 @@ def _show_bag(args: argparse.Namespace, scene, rec, url: str | None) -> int:
     return 0
 
 
-def _show_live(scene, rec, url: str | None, ros_args: list[str]) -> int:
+def viewer_connected(port: int) -> bool:
+    """Whether a TCP connection to local ``port`` is established (a viewer streaming from the server).
+
+    Reads ``/proc/net/tcp`` and ``tcp6`` (Linux); elsewhere it answers True, so the view logs always.
+    """
+    found = False
+    for table in ('/proc/net/tcp', '/proc/net/tcp6'):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        found = True
+        for line in lines:
+            fields = line.split()
+            # local address "IP:PORT" in hex, state 01 = ESTABLISHED
+            if len(fields) > 3 and fields[3] == '01' and int(fields[1].rsplit(':', 1)[1], 16) == port:
+                return True
+    return not found
+
+
+def _show_live(scene, rec, url: str | None, ros_args: list[str], qos: str, gate: int | None) -> int:
     from sonar_tracking.nodes._runtime import run_node
 
     def factory():
         from rclpy.node import Node
         from rclpy.qos import QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
+        from rclpy.serialization import deserialize_message
 
         from msg_adapters import rclpy_types
 
@@ -163,24 +197,40 @@ def _show_live(scene, rec, url: str | None, ros_args: list[str]) -> int:
             def __init__(self) -> None:
                 super().__init__('sonar_view')
                 types = rclpy_types()
-                reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+                records = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE if qos == 'reliable'
+                                     else ReliabilityPolicy.BEST_EFFORT)
+                self.connected = gate is None
+                # Raw subscriptions: a message is only copied until a viewer wants it deserialized.
                 self.subs = [self.create_subscription(
-                    types.cls(msgtype), topic, lambda m, t=topic: scene.handle(t, m),
-                    qos_profile_sensor_data if topic in IMAGE_TOPICS else reliable)
+                    types.cls(msgtype), topic, lambda data, t=topic, c=types.cls(msgtype): self._take(t, c, data),
+                    qos_profile_sensor_data if topic in IMAGE_TOPICS else records, raw=True)
                     for topic, msgtype in TOPICS.items()]
                 self.create_timer(10.0, self._report)
+                if gate is not None:
+                    self.create_timer(0.5, self._check_viewer)
                 self.get_logger().info(f'listening in namespace {self.get_namespace()!r} to '
                                        f'{len(self.subs)} topics')
                 if url is not None:
                     print(f'view: {url}', flush=True)
 
+            def _take(self, topic: str, cls: type, data: bytes) -> None:
+                if self.connected:
+                    scene.handle(topic, deserialize_message(data, cls))
+
+            def _check_viewer(self) -> None:
+                connected = viewer_connected(gate)
+                if connected != self.connected:
+                    self.get_logger().info('a viewer connected: logging' if connected else
+                                           'no viewer connected: not logging (the pipeline pays nothing)')
+                self.connected = connected
+
             def _report(self) -> None:
-                rec.flush()
                 self.get_logger().info(_summary(scene))
 
             def destroy_node(self) -> None:
                 scene.finish()
-                print(f'[sonar_view] {_summary(scene)}', flush=True)  # the context may be shut down: no rosout
+                # The context may be shut down already: print, not rosout.
+                print(f'[sonar_view] {_summary(scene)}', flush=True)
                 super().destroy_node()
 
         return ViewNode()

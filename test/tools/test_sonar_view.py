@@ -323,7 +323,7 @@ def test_the_browser_shows_a_running_stack(tmp_path):
     log = (OUT / 'stack.log').open('w')
     stack = subprocess.Popen(
         [sys.executable, '-m', 'sonar_tracking.tools.sonar_stack', '--config', str(tmp_path / 'stack.yaml'),
-         '--view', f'--grpc-port {grpc} --web-port {web} --save {rrd}'],
+         '--view', f'--grpc-port {grpc} --web-port {web} --save {rrd} --qos reliable'],
         stdout=log, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     browser = None
     try:
