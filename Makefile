@@ -50,7 +50,8 @@ build: $(STAMP)
 	$(VENV)/bin/colcon --log-base log build --paths . --build-base build --install-base install
 	@echo "==> built install/sonar_tracking (source install/setup.bash to use it)"
 
-test: build
+# view-deps: sonar_view's tests need its extra, and its browser test Debian's chromium (~25 s here).
+test: build view-deps
 	$(VPY) -m pytest test
 
 # The view is an extra: the demo runs (and writes its PNG) without it when it cannot install.

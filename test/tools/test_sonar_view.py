@@ -213,6 +213,21 @@ def test_without_the_extra_it_says_make_view():
     assert r.returncode == 2 and '`make view`' in r.stderr
 
 
+def test_viewer_connected_sees_established_connections_to_its_port():
+    from sonar_tracking.tools.sonar_view import viewer_connected
+    with socket.socket() as server:
+        server.bind(('127.0.0.1', 0))
+        server.listen()
+        port = server.getsockname()[1]
+        assert not viewer_connected(port)  # listening is not connected
+        client = socket.create_connection(('127.0.0.1', port))
+        conn, _ = server.accept()
+        assert viewer_connected(port)
+        client.close()
+        conn.close()
+        assert not viewer_connected(port)
+
+
 # -- the browser ------------------------------------------------------------------------------------
 
 class Chromium:
@@ -297,6 +312,8 @@ def colour_pixels(png: bytes, rgb: tuple[int, int, int], box: tuple[int, int, in
     return int((np.abs(img.astype(int) - np.array(rgb)).max(axis=2) <= tol).sum())
 
 
+MAP = (0, 40, 960, 960)  # the map view in a 1600 x 1000 page
+
 STACK = '''
 on_exit: stop
 nodes:
@@ -335,17 +352,18 @@ def test_the_browser_shows_a_running_stack(tmp_path):
         browser.page('Page.navigate', url=url)
         finished = wait_for_line(stack, OUT / 'stack.log', r'finished after (\d+) sectors')
         assert int(finished.group(1)) == scans
-        # Wait until the page draws the run: detections (orange) on the map, the threshold curve (red).
-        deadline, shot = time.monotonic() + 180, b''
-        while time.monotonic() < deadline:
+        # Wait until the page draws the run: the fan (dark pixels), detections (orange) on the map, the
+        # threshold curve (red).
+        deadline, shot, missing = time.monotonic() + 180, b'', ['everything']
+        while missing and time.monotonic() < deadline:
             shot = browser.screenshot()
-            if (colour_pixels(shot, (255, 160, 0), (0, 40, 960, 960)) > 50
-                    and colour_pixels(shot, (230, 60, 60), (960, 40, 1600, 340)) > 50):
-                break
+            missing = [what for what, colour, box, n in (
+                ('the fan', (10, 10, 10), MAP, 100_000), ('detections', (255, 160, 0), MAP, 50),
+                ('the threshold curve', (230, 60, 60), (960, 40, 1600, 300), 50))
+                if colour_pixels(shot, colour, box) < n]
             time.sleep(1.0)
         (OUT / 'screenshot.png').write_bytes(shot)
-        assert colour_pixels(shot, (255, 160, 0), (0, 40, 960, 960)) > 50, 'no detections drawn (see the screenshot)'
-        assert colour_pixels(shot, (230, 60, 60), (960, 40, 1600, 340)) > 50, 'no threshold curve drawn'
+        assert not missing, f'not drawn: {missing} (see {OUT / "screenshot.png"})'
         received = browser.received_bytes(f':{grpc}/')
     finally:
         if stack.poll() is None:

@@ -6,7 +6,7 @@ Rerun 2-D view points its vertical axis down):
 * ``map/fan``: the sonar sectors painted into a world-frame image (:class:`PolarCanvas`, the same
   painting as ``/sonar/fan``) at the platform pose from ``platform/odometry`` (else ``sonar_pose``);
 * ``map/fls_image``: the FLS front end's processed image, placed by its ``fls/image_info``;
-* ``map/detections``, ``map/regions`` (labelled ``R<id>``), ``map/truth/{points,tails}``;
+* ``map/detections``, ``map/regions`` (labelled ``R<id>``), ``map/truth/{points,tails}`` (white);
 * ``map/tracks/confirmed/{points,tails,velocity,covariance}`` (green) and
   ``map/tracks/tentative/points`` (grey) for the IMM-IPDA tracks, ``map/gpf/...`` (blue) for the
   GPF tracks: points labelled ``T<id>``, the velocity arrow spanning ``arrow_seconds``, the
@@ -290,9 +290,10 @@ class SceneLogger:
     def _truth(self, msg: Any) -> None:
         truth = self._records(msg, ('target_id', 'x', 'y'))
         tails = self._update_tails('truth', truth['target_id'], truth)
+        # Unlabelled (a label would hide the track's on top of it); the id is in the hover text.
         self.rec.log('map/truth/points', rr.Points2D(_xy(truth), radii=rr.Radius.ui_points(3.5), colors=[_TRUTH],
                                                      labels=[f'target {int(i)}' for i in truth['target_id']],
-                                                     draw_order=12.0))
+                                                     show_labels=False, draw_order=12.0))
         self.rec.log('map/truth/tails', rr.LineStrips2D([t.astype(np.float32) for t in tails], colors=[(*_TRUTH, 120)],
                                                         radii=rr.Radius.ui_points(1.5), draw_order=8.0))
 
