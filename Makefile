@@ -47,7 +47,7 @@ $(STAMP): requirements.txt requirements-test.txt setup.py package.xml
 	touch $@
 
 build: $(STAMP)
-	$(VENV)/bin/colcon --log-base log build --paths . --build-base build --install-base install
+	$(VENV)/bin/colcon --log-base log build --symlink-install --paths . --build-base build --install-base install
 	@echo "==> built install/sonar_tracking (source install/setup.bash to use it)"
 
 # view-deps: sonar_view's tests need its extra, and its browser test Debian's chromium (~25 s here).

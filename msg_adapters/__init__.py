@@ -8,6 +8,7 @@ from .errors import AdapterError
 from .image import ENCODING_DTYPES, array_to_image, image_to_array
 from .markers import covariance_ellipse, track_markers
 from .odometry import odometry_to_pose, pose_to_odometry
+from .pairing import StampPairer
 from .pointcloud import array_to_cloud, cloud_to_array, dtype_to_fields, fields_to_dtype
 from .records import (DETECTION_DTYPE, FEATURE_NAMES, GPF_TRACK_DTYPE, RECORD_DTYPES, REGION_DTYPE,
                       TRACK_DTYPE, TRUTH_DTYPE)
@@ -22,6 +23,7 @@ __all__ = [
     'DETECTION_DTYPE', 'TRACK_DTYPE', 'TRUTH_DTYPE', 'REGION_DTYPE', 'GPF_TRACK_DTYPE',
     'FEATURE_NAMES', 'RECORD_DTYPES',
     'SectorPair', 'SectorPairer', 'geometry_to_scan', 'scan_to_geometry', 'sector_from_messages',
+    'StampPairer',
     'track_markers', 'covariance_ellipse', 'odometry_to_pose', 'pose_to_odometry',
     'header', 'header_ns', 'ns_to_stamp', 'stamp_to_ns',
     'MessageTypes', 'RclpyTypes', 'RosbagsTypes', 'rclpy_types',

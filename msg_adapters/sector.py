@@ -8,7 +8,6 @@ beam). Consumers pair the two by stamp with :class:`SectorPairer`.
 """
 from __future__ import annotations
 
-from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,6 +17,7 @@ from sonar_tracking.core.sector import GeometryError, SectorGeometry
 
 from .errors import AdapterError
 from .image import image_to_array
+from .pairing import StampPairer
 from .stamps import header, header_ns
 from .types import MessageTypes, rclpy_types
 
@@ -96,53 +96,21 @@ class SectorPair:
     info: Any
 
 
-class SectorPairer:
-    """Pairs sector Images with their LaserScans by exact header stamp (either may come first).
-
-    When a pair completes, unpaired messages with earlier stamps can no longer be matched (the
-    publisher sends both halves of a sector together) and are reported by :meth:`pop_dropped`,
-    as are the oldest pending messages once more than ``max_pending`` of a kind wait.
-    """
+class SectorPairer(StampPairer):
+    """Pairs sector Images with their LaserScans by exact header stamp (either may come first);
+    given-up halves are reported by :meth:`pop_dropped` as ``(stamp_ns, (part,))``."""
 
     def __init__(self, max_pending: int = 16) -> None:
-        if max_pending < 1:
-            raise ValueError('max_pending must be >= 1')
-        self.max_pending = max_pending
-        self._pending: dict[str, OrderedDict[int, Any]] = {'image': OrderedDict(), 'info': OrderedDict()}
-        self._dropped: list[tuple[str, int]] = []
+        super().__init__(('image', 'info'), max_pending)
 
     def add_image(self, msg: Any) -> SectorPair | None:
         """Offer a sector Image; return the completed pair if its LaserScan is waiting."""
-        return self._add('image', 'info', msg)
+        return self._pair(self.add('image', header_ns(msg), msg))
 
     def add_info(self, msg: Any) -> SectorPair | None:
         """Offer a sector LaserScan; return the completed pair if its Image is waiting."""
-        return self._add('info', 'image', msg)
+        return self._pair(self.add('info', header_ns(msg), msg))
 
-    def pop_dropped(self) -> list[tuple[str, int]]:
-        """``[(kind, stamp_ns), ...]`` of messages given up since the last call."""
-        out, self._dropped = self._dropped, []
-        return out
-
-    def clear(self) -> None:
-        """Forget everything pending (e.g. after time went backwards)."""
-        for q in self._pending.values():
-            q.clear()
-
-    def _add(self, kind: str, other: str, msg: Any) -> SectorPair | None:
-        stamp = header_ns(msg)
-        match = self._pending[other].pop(stamp, None)
-        if match is None:
-            mine = self._pending[kind]
-            if stamp in mine:
-                self._dropped.append((kind, stamp))
-            mine[stamp] = msg
-            while len(mine) > self.max_pending:
-                self._dropped.append((kind, mine.popitem(last=False)[0]))
-            return None
-        for k, q in self._pending.items():
-            for s in [s for s in q if s < stamp]:
-                del q[s]
-                self._dropped.append((k, s))
-        image, info = (msg, match) if kind == 'image' else (match, msg)
-        return SectorPair(stamp, image, info)
+    @staticmethod
+    def _pair(frame: dict | None) -> SectorPair | None:
+        return None if frame is None else SectorPair(header_ns(frame['image']), frame['image'], frame['info'])

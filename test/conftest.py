@@ -9,7 +9,7 @@ import pytest
 # and the package's DDS profile, as every process of the package uses it.
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-from sonar_tracking.nodes._runtime import configure_dds  # noqa: E402 (must precede rclpy)
+from sonar_tracking.ros.runtime import configure_dds  # noqa: E402 (must precede rclpy)
 configure_dds()
 
 
@@ -131,3 +131,30 @@ def launch():
     for proc in procs:
         if proc.poll() is None:
             stop(proc, 10.0)
+
+
+@pytest.fixture
+def inproc(graph_node):
+    """``inproc(NodeClass, **params)``: a package node in this process (the probe's context), spun by an
+    executor thread; destroyed at teardown. Faster than a process and shares the probe's DDS participant."""
+    import threading
+
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.parameter import Parameter
+    started = []
+
+    def start(node_cls, **params):
+        node = node_cls(context=graph_node.context,
+                        parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
+        executor = SingleThreadedExecutor(context=graph_node.context)
+        executor.add_node(node)
+        thread = threading.Thread(target=executor.spin, daemon=True)
+        thread.start()
+        started.append((node, executor, thread))
+        return node
+
+    yield start
+    for node, executor, thread in started:
+        executor.shutdown(timeout_sec=2.0)
+        thread.join(timeout=5.0)
+        node.destroy_node()

@@ -188,8 +188,9 @@ class Config:
             return self
         try:
             return dataclasses.replace(self, **changes)
-        except ConfigError as exc:  # name nested settings by their dotted path
-            raise ConfigError(f'{prefix}{exc}') from None
+        except ConfigError as exc:  # name nested settings by their dotted path, once
+            text = str(exc)
+            raise ConfigError(text if text.startswith(prefix) else f'{prefix}{text}') from None
 
     def replace(self, **changes: Any) -> 'Config':
         """Copy with fields replaced (validated again)."""

@@ -12,6 +12,7 @@ column 0 the largest ``y`` (left is left).
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 
 import numpy as np
 
@@ -44,7 +45,7 @@ class PolarCanvas:
     """A Cartesian image of ``[x_min, x_max] x [y_min, y_max]`` at ``resolution`` metres per pixel."""
 
     def __init__(self, x_min: float, x_max: float, y_min: float, y_max: float, resolution: float,
-                 fill: float = np.nan, dtype: type = np.float32) -> None:
+                 fill: float = np.nan, dtype: type = np.float32, cache_pixels: int = 4_000_000) -> None:
         if not (x_max > x_min and y_max > y_min and resolution > 0):
             raise ValueError('canvas needs x_max > x_min, y_max > y_min and resolution > 0')
         self.x_max, self.y_max, self.resolution = float(x_max), float(y_max), float(resolution)
@@ -55,6 +56,11 @@ class PolarCanvas:
         # Pixel-centre coordinates in the canvas frame.
         self._x = self.x_max - (np.arange(self.height) + 0.5) * resolution
         self._y = self.y_max - (np.arange(self.width) + 0.5) * resolution
+        # Pixel-to-cell maps by geometry and pose, least recently used first; at most
+        # ``cache_pixels`` mapped pixels in all (16 bytes each), but always the latest map.
+        self.cache_pixels = int(cache_pixels)
+        self._maps: OrderedDict[tuple, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+        self._cached = 0
 
     @classmethod
     def with_size(cls, extent: tuple[float, float, float, float], size_px: int, **kw) -> 'PolarCanvas':
@@ -78,8 +84,38 @@ class PolarCanvas:
         """Write a sector ``(n_bins, n_beams)`` taken at ``pose`` (sensor pose in the canvas frame).
 
         With ``hold_max`` a pixel keeps the largest value painted on it so far (a track picture).
-        Returns the number of pixels painted.
+        Returns the number of pixels painted. The pixel-to-cell map of a geometry and pose is
+        cached, so painting the same geometry again (a fixed sonar) only copies values.
         """
+        pixels, cells = self._cell_map(geometry, pose)
+        if pixels.size == 0:
+            return 0
+        flat = self.image.reshape(-1)
+        new = np.asarray(values).reshape(-1)[cells]
+        flat[pixels] = np.fmax(flat[pixels], new) if hold_max else new
+        return int(pixels.size)
+
+    def _cell_map(self, geometry: SectorGeometry,
+                  pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """Flat image indices of the pixels a sector covers and the flat sector cell of each (cached)."""
+        key = (geometry.angle_min, geometry.angle_increment, geometry.n_beams, geometry.range_min,
+               geometry.range_max, geometry.n_bins, float(pose[0]), float(pose[1]), float(pose[2]))
+        hit = self._maps.get(key)
+        if hit is not None:
+            self._maps.move_to_end(key)
+            return hit
+        pixels, cells = self._compute_cell_map(geometry, pose)
+        self._maps[key] = (pixels, cells)
+        self._cached += pixels.size
+        while self._cached > self.cache_pixels and len(self._maps) > 1:  # bounded memory
+            _, (old, _) = self._maps.popitem(last=False)
+            self._cached -= old.size
+        return pixels, cells
+
+    def _compute_cell_map(self, geometry: SectorGeometry,
+                          pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest sector cell of every pixel centre inside the sector's beams and bins."""
+        empty = np.empty(0, dtype=np.intp)
         px, py, yaw = pose
         x0, x1, y0, y1 = fan_extent(geometry)
         c, s = math.cos(yaw), math.sin(yaw)
@@ -91,7 +127,7 @@ class PolarCanvas:
         r0, r1 = max(0, int(math.floor(r_lo))), min(self.height, int(math.ceil(r_hi)) + 1)
         c0, c1 = max(0, int(math.floor(c_lo))), min(self.width, int(math.ceil(c_hi)) + 1)
         if r0 >= r1 or c0 >= c1:
-            return 0
+            return empty, empty
         dx = self._x[r0:r1, None] - px
         dy = self._y[None, c0:c1] - py
         xs, ys = dx * c + dy * s, -dx * s + dy * c  # into the sensor frame
@@ -103,12 +139,10 @@ class PolarCanvas:
         dr = geometry.range_resolution if geometry.n_bins > 1 else max(geometry.range_min, 1.0)
         i = np.rint((rng - geometry.range_min) / dr)
         ok = (j >= 0) & (j < geometry.n_beams) & (i >= 0) & (i < geometry.n_bins)
-        if not ok.any():
-            return 0
-        window = self.image[r0:r1, c0:c1]
-        new = values[i[ok].astype(np.intp), j[ok].astype(np.intp)]
-        window[ok] = np.fmax(window[ok], new) if hold_max else new
-        return int(ok.sum())
+        rows, cols = np.nonzero(ok)
+        pixels = (rows + r0) * self.width + (cols + c0)
+        cells = i[ok].astype(np.intp) * geometry.n_beams + j[ok].astype(np.intp)
+        return pixels.astype(np.intp), cells
 
 
 def to_mono8(image: np.ndarray, dynamic_range_db: float = 30.0, floor_percentile: float = 50.0) -> np.ndarray:

@@ -18,8 +18,9 @@ Codings (``coding``):
 * ``display``: values are display brightness with gamma ``gamma``: amplitude =
   (c / full_scale)^gamma (floats taken as already in [0, 1]).
 
-In every coding an exact zero stays 0: a sensor that reports 0 measured nothing there (below its
-gain floor, or a blanked cell), which is not the same as a weak echo. Cells at or below
+An exact zero count stays 0: a sensor that reports 0 measured nothing there (below its gain floor,
+or a blanked cell), which is not the same as a weak echo (float dB values have no such count: 0 dB
+is a level). Only ``db`` values may be negative. Cells at or below
 ``noise_floor`` (linear amplitude, after decoding) are set to 0 as well. Rows nearer than
 ``blank_range`` (transducer ringdown) are set to 0, and rows beyond ``max_range`` are cut off.
 """
@@ -33,7 +34,7 @@ import numpy as np
 from .config import Config, ConfigError, setting
 from .sector import SectorGeometry
 
-__all__ = ['CODINGS', 'IntensityConfig', 'decode', 'full_scale_of', 'gate_ranges', 'condition']
+__all__ = ['CODINGS', 'IntensityConfig', 'decode', 'encode_db', 'full_scale_of', 'gate_ranges', 'condition']
 
 CODINGS = ('linear_amplitude', 'linear_power', 'db', 'display')
 
@@ -72,7 +73,7 @@ def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: flo
     """Linear echo amplitude (float64, a new array) of sensor values in ``coding``.
 
     ``full_scale`` is the count of full scale of an integer image (:func:`full_scale_of`); None
-    for float values. Exact zeros stay 0. Raises ValueError for an unknown coding.
+    for float values. Exact zero counts stay 0. Raises ValueError for an unknown coding.
     """
     v = np.asarray(values, dtype=np.float64)
     if coding == 'linear_amplitude':
@@ -80,10 +81,11 @@ def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: flo
     if coding == 'linear_power':
         return np.sqrt(np.maximum(v, 0.0))
     if coding == 'db':
-        db = v * (db_span / full_scale) if full_scale else v
-        step = db_span / full_scale if full_scale else 0.0
-        # relative to count 1 (or 0 dB for floats), so the weakest reported echo is about 1
-        out = np.power(10.0, (db - step) / 20.0)
+        if not full_scale:
+            return np.power(10.0, v / 20.0)   # float dB: 0 dB is a level like any other
+        step = db_span / full_scale
+        # relative to count 1, so the weakest reported echo is about 1; count 0 is no echo
+        out = np.power(10.0, (v - 1.0) * (step / 20.0))
     elif coding == 'display':
         scaled = np.clip(v / full_scale, 0.0, None) if full_scale else np.clip(v, 0.0, None)
         out = np.power(scaled, gamma)
@@ -91,6 +93,26 @@ def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: flo
         raise ValueError(f'unknown intensity coding {coding!r}; one of {list(CODINGS)}')
     out[v == 0.0] = 0.0
     return out
+
+
+def encode_db(amplitude: np.ndarray, db_span: float = 60.0, full_scale: int = 255,
+              reference: float = 1.0) -> np.ndarray:
+    """Log-compressed integer counts of linear amplitudes: the inverse of :func:`decode` with ``db``.
+
+    Count 1 is the amplitude ``reference`` (the sensor's gain floor) and each further count is
+    ``db_span / full_scale`` dB more, rounded to the nearest count and clipped at ``full_scale``;
+    amplitudes more than half a count below ``reference`` (and non-finite or negative values)
+    are 0, no echo. ``decode(encode_db(a, ...), 'db', ...)`` is ``a / reference`` within half a
+    count. Returns uint8 for ``full_scale`` 255, uint16 up to 65535.
+    """
+    if not 1 <= full_scale <= 65535:
+        raise ValueError(f'full_scale = {full_scale} must be in [1, 65535]')
+    a = np.asarray(amplitude, dtype=np.float64)
+    step = db_span / full_scale
+    with np.errstate(divide='ignore', invalid='ignore'):
+        counts = 1.0 + np.rint(20.0 * np.log10(a / reference) / step)
+    counts = np.where(np.isfinite(counts) & (counts >= 1.0), np.minimum(counts, full_scale), 0.0)
+    return counts.astype(np.uint8 if full_scale <= 255 else np.uint16)
 
 
 def gate_ranges(geometry: SectorGeometry, blank_range: float, max_range: float) -> tuple[int, int]:

@@ -12,11 +12,23 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ['SectorGeometry', 'GeometryError']
+__all__ = ['SectorGeometry', 'GeometryError', 'SectorError', 'check_sector', 'MAX_RANGE', 'MAX_BEAMS_PER_TURN',
+           'MAX_CELLS']
+
+#: Physical bounds every consumer applies before it allocates anything for a sector: no sonar
+#: reaches beyond 100 km, forms more than 65536 beams in a turn, or sends 2^25 cells at once.
+MAX_RANGE = 1e5
+MAX_BEAMS_PER_TURN = 65536
+MAX_CELLS = 2 ** 25
 
 
 class GeometryError(ValueError):
-    """Sector geometry is inconsistent (bad counts, non-finite values, wrong order)."""
+    """Sector geometry is inconsistent (bad counts, non-finite values, wrong order) or beyond the
+    physical bounds (``MAX_RANGE``, ``MAX_BEAMS_PER_TURN``, ``MAX_CELLS``)."""
+
+
+class SectorError(ValueError):
+    """Sector values cannot be echo intensities (NaN, infinite or negative)."""
 
 
 @dataclass(frozen=True)
@@ -63,6 +75,15 @@ class SectorGeometry:
             raise GeometryError(f'{self.n_bins} range bins need range_max > range_min')
         if self.scan_time < 0.0:
             raise GeometryError(f'scan_time = {self.scan_time} must be >= 0')
+        if self.range_max > MAX_RANGE:
+            raise GeometryError(f'range_max = {self.range_max:g} m is beyond any sonar (at most {MAX_RANGE:g} m)')
+        if self.angle_increment < 2.0 * math.pi / MAX_BEAMS_PER_TURN:
+            raise GeometryError(f'angle_increment = {self.angle_increment:g} rad is finer than '
+                                f'{MAX_BEAMS_PER_TURN} beams per turn')
+        if (self.n_beams - 1) * self.angle_increment > 2.0 * math.pi * (1.0 + 1e-6):
+            raise GeometryError(f'{self.n_beams} beams of {self.angle_increment:g} rad span more than a full turn')
+        if self.n_beams * self.n_bins > MAX_CELLS:
+            raise GeometryError(f'{self.n_bins} bins x {self.n_beams} beams is more than {MAX_CELLS} cells')
 
     @property
     def angle_max(self) -> float:
@@ -97,3 +118,28 @@ class SectorGeometry:
             raise GeometryError(f'amplitudes have shape {a.shape}, geometry says {self.shape}')
         idx = np.argmax(a, axis=0)
         return self.ranges()[idx], a[idx, np.arange(self.n_beams)].astype(np.float64)
+
+
+def check_sector(values: np.ndarray, geometry: SectorGeometry, coding: str = 'linear_amplitude') -> np.ndarray:
+    """The sector's values as an array of the geometry's shape, or SectorError / GeometryError saying
+    what is wrong: the one rule of every sector consumer (detector, FLS front end, importer).
+
+    NaN and infinite values are refused, and so are negative ones unless ``coding`` is ``db``
+    (:mod:`sonar_tracking.core.intensity`); an all-zero sector is valid (nothing was seen: open
+    water, blanked, below the gain floor).
+    """
+    a = np.asarray(values)
+    if a.shape != geometry.shape:
+        raise GeometryError(f'sector is {a.shape} but its geometry says {geometry.n_bins} bins x '
+                            f'{geometry.n_beams} beams')
+    if a.dtype.kind not in 'uif':
+        raise SectorError(f'sector has dtype {a.dtype}; expected numbers (echo intensity)')
+    if a.dtype.kind == 'f':
+        bad = ~np.isfinite(a)
+        if bad.any():
+            raise SectorError(f'sector has {int(bad.sum())} NaN or infinite values')
+    if a.dtype.kind != 'u' and coding != 'db':
+        negative = a < 0
+        if negative.any():
+            raise SectorError(f'sector has {int(negative.sum())} negative values; echo intensity is >= 0')
+    return a

@@ -1,27 +1,26 @@
 """``fls_features``: FLS image building, modified median filter, region growing, region features.
 
-Subscribes ``/sonar/sector`` + ``/sonar/sector_info`` (paired by stamp; a half that never finds its
-partner is dropped with a warning) and ``/platform/odometry`` (the sonar's pose for a moving
+Subscribes ``sonar/sector`` + ``sonar/sector_info`` (paired by stamp; a half that never finds its
+partner is dropped with a warning) and ``platform/odometry`` (the sonar's pose for a moving
 platform; without it the ``sonar_pose`` parameter). Publishes, whenever a sweep completes (or
 every sector with ``image.publish: sector``), in this order and with one stamp (the last sector
 in the image):
 
-* ``/fls/image_info`` (``nav_msgs/MapMetaData``): the pixel <-> metres mapping of the image,
-  ``map_load_time`` = the image stamp (see ``_image_info``);
-* ``/fls/image`` (``sensor_msgs/Image`` ``32FC1``): the processed image the regions refer to:
+* ``fls/image_info`` (``nav_msgs/MapMetaData``): the pixel <-> metres mapping of the image,
+  ``map_load_time`` = the image stamp (see ``msg_adapters.map_info``);
+* ``fls/image`` (``sensor_msgs/Image`` ``32FC1``): the processed image the regions refer to:
   filtered, range-normalised intensity (1 = background level, 0 = no data), in OccupancyGrid
   layout (columns along x, rows along y of ``header.frame_id``);
-* ``/fls/regions`` (``sensor_msgs/PointCloud2``, REGION_DTYPE): one point per region, ``x, y`` in
+* ``fls/regions`` (``sensor_msgs/PointCloud2``, REGION_DTYPE): one point per region, ``x, y`` in
   the image's frame, ``range, bearing`` from the sonar, features ``f01..f30`` (Table 2); width 0
   when there are none;
 
-and ``/diagnostics`` once a second. ``frame: world`` (default) places sectors by their pose in
+and ``diagnostics`` once a second. ``frame: world`` (default) places sectors by their pose in
 ``world_frame``; ``frame: sensor`` paints them in the sonar's own frame (a static sonar).
 
 Bad input (unknown encoding, image and geometry that disagree, an empty, all-zero or non-finite
-sector, a stamp older than the last) is logged and the message dropped; the node keeps running.
-A stamp more than ``time_jump_reset`` seconds older than the last restarts the image (a new
-recording).
+sector, a late stamp) is logged and the message dropped; the node keeps running. A jump back in
+time restarts the image (a new recording; :mod:`sonar_tracking.ros.timeline`).
 """
 from __future__ import annotations
 
@@ -29,21 +28,14 @@ import time
 from collections import OrderedDict
 from dataclasses import dataclass
 
-from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import MapMetaData
-from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Image, PointCloud2
 
 import msg_adapters as ma
+from msg_adapters.map_info import grid_to_map_info
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FlsConfig, FlsFrame, FlsInputError, FlsProcessor
-
-from ._diagnostics import StageDiagnostics
-from ._image_info import grid_to_map_info
-from ._params import ConfigParameters
-from ._runtime import run_node
-from ._sector_input import SectorInput, SectorInputConfig
+from sonar_tracking.ros import SectorInput, SectorInputConfig, SonarNode, output_profile, run_node
 
 __all__ = ['FlsNodeConfig', 'FlsFeaturesNode', 'main']
 
@@ -59,45 +51,37 @@ class FlsNodeConfig(FlsConfig, SectorInputConfig):
                                read_only=True)
 
 
-class FlsFeaturesNode(Node):
+class FlsFeaturesNode(SonarNode):
     """Runs an :class:`FlsProcessor` on paired sectors and publishes its frames."""
 
     #: Settings that may change while running (the rest only at start-up).
     READ_ONLY = {'frame', 'world_frame', 'max_pending', 'image.resolution'}
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('fls_features', **kwargs)
         mutable = {s.name for s in FlsNodeConfig.settings()} - self.READ_ONLY
-        self.params = ConfigParameters(self, FlsNodeConfig(), on_change=self._on_change, mutable=mutable)
-        self.config: FlsNodeConfig = self.params.config
+        super().__init__('fls_features', FlsNodeConfig(), 'fls_features: segmentation', mutable=mutable, **kwargs)
         self.processor = FlsProcessor(self.config)
         self._ns_of: OrderedDict[float, int] = OrderedDict()
         self._t0_ns: int | None = None
         self.frames = 0
-        self.diag = StageDiagnostics('fls_features: segmentation')
-        self.input = SectorInput(self, self.diag, lambda: self.config, self._process, self._on_reset,
-                                 use_odometry=lambda: self.config.frame == 'world')
-        out = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
-        self.pub_info = self.create_publisher(MapMetaData, '/fls/image_info', out)
-        self.pub_image = self.create_publisher(Image, '/fls/image', out)
-        self.pub_regions = self.create_publisher(PointCloud2, '/fls/regions', out)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_timer(1.0, self._publish_diagnostics)
+        self.input = SectorInput(self, self._process, self._on_reset, use_odometry=lambda: self.config.frame == 'world')
+        out = output_profile(50)
+        self.pub_info = self.create_publisher(MapMetaData, 'fls/image_info', out)
+        self.pub_image = self.create_publisher(Image, 'fls/image', out)
+        self.pub_regions = self.create_publisher(PointCloud2, 'fls/regions', out)
         c = self.config
         self.get_logger().info(
             f'{c.image.resolution:g} m pixels in the {c.frame} frame, published per {c.image.publish}; filter '
             f'{c.filter.window_bins} bins x {c.filter.window_beams} beams trim {c.filter.trim}; regions from '
             f'{c.segment.seed_db:g} dB, grown to {c.segment.grow_db:g} dB, joined within {c.segment.join_distance:g} m')
 
-    def _on_change(self, old: FlsNodeConfig, new: FlsNodeConfig) -> None:
-        self.config = new
+    def on_change(self, old: FlsNodeConfig, new: FlsNodeConfig) -> None:
         self.processor.reconfigure(new)
         if new.filter != old.filter:
             self.get_logger().info('filter settings changed: the image starts again')
 
     # -- processing --------------------------------------------------------------------------
-    def _on_reset(self, back: float) -> None:
-        self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): the image starts again')
+    def _on_reset(self) -> None:
         self.processor.reset()
         self._t0_ns = None
 
@@ -109,7 +93,7 @@ class FlsFeaturesNode(Node):
         try:
             frames = self.processor.add_sector(amplitudes, geometry, pose, t)
         except FlsInputError as exc:
-            self.diag.report(self.get_logger(), 'bad_values', f'sector at {stamp_ns / 1e9:.3f} s dropped: {exc}')
+            self.say('error', f'sector at {stamp_ns / 1e9:.3f} s dropped: {exc}', 'bad_values')
             return False
         self._ns_of[t] = stamp_ns
         while len(self._ns_of) > 256:
@@ -132,9 +116,6 @@ class FlsFeaturesNode(Node):
             'sectors_in_frame': str(frame.sectors), 'background_db': f'{frame.background_db:.2f}',
             'odometry': 'yes' if self.input.has_odometry else 'no (sonar_pose)',
         } | {f'{k}_ms': f'{1e3 * v:.2f}' for k, v in frame.timings.items()}
-
-    def _publish_diagnostics(self) -> None:
-        self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))
 
 
 def main(args: list[str] | None = None) -> int:

@@ -1,10 +1,11 @@
-"""``imm_ipda_tracker``: the IMM-IPDA multi-target tracker of the ESC paper (§2.4) on ``/detections``.
+"""``imm_ipda_tracker``: the IMM-IPDA multi-target tracker of the ESC paper (§2.4) on ``detections``.
 
-Subscribes ``/detections`` (``DETECTION_DTYPE`` clouds in the world frame: positions, the
+Subscribes ``detections`` (``DETECTION_DTYPE`` clouds in the world frame: positions, the
 converted-measurement covariance ``cov_xx, cov_xy, cov_yy`` and the SCMDE ``clutter_density``)
-and ``/platform/odometry`` (only noted, for diagnostics: tracking is in the world frame, so the
-platform's motion is already in the detections). Publishes ``/tracks`` (``TRACK_DTYPE``, width 0
-when there are no tracks), ``/tracks/markers`` and ``/diagnostics``.
+and ``platform/odometry`` (only noted, for diagnostics: tracking is in the world frame, so the
+platform's motion is already in the detections). Publishes ``tracks`` (``TRACK_DTYPE``: confirmed
+tracks, and tentative ones too with ``publish_tentative``; width 0 when there are none),
+``tracks/markers`` and ``diagnostics``.
 
 Every model setting and threshold is a parameter with a descriptor
 (``ros2 param describe /imm_ipda_tracker NAME``); changes apply to the running tracker, and a
@@ -17,8 +18,9 @@ Bad input never stops the node:
   adapter's reason;
 * detection rows with NaN, a covariance that is not positive definite or a clutter density that
   is not positive are dropped one by one, with their reasons in the log;
-* a repeated stamp drops the message; a stamp older than the last one (a looping bag) restarts
-  the tracker cleanly: all tracks end, new ones get new ids.
+* stamps follow the package's time rule (:mod:`sonar_tracking.ros.timeline`): a late or repeated
+  stamp drops the message, a jump back restarts the tracker cleanly (all tracks end, new ones get
+  new ids).
 """
 from __future__ import annotations
 
@@ -26,97 +28,57 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
-from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
 import msg_adapters as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
+from sonar_tracking.core.tracking.detections import detections_to_measurements
+from sonar_tracking.ros import InputConfig, SonarNode, output_profile, run_node
 
-from ._diagnostics import StageDiagnostics
-from ._params import ConfigParameters
-from ._runtime import run_node
-
-__all__ = ['TrackerNodeConfig', 'ImmIpdaTrackerNode', 'detections_to_measurements', 'main']
-
-_COV_FIELDS = ('cov_xx', 'cov_xy', 'cov_yy')
-
+__all__ = ['TrackerNodeConfig', 'ImmIpdaTrackerNode', 'main']
 
 @dataclass(frozen=True)
-class TrackerNodeConfig(TrackerConfig):
-    """Tracker settings plus what the node publishes."""
+class TrackerNodeConfig(TrackerConfig, InputConfig):
+    """Tracker settings, input QoS and time rule, and what the node publishes."""
 
-    world_frame: str = setting('world', 'frame of /detections and /tracks', read_only=True)
-    publish_tentative: bool = setting(True, 'publish tentative tracks on /tracks too (field confirmed = 0)')
-    markers_tentative: bool = setting(False, 'draw tentative tracks in /tracks/markers as well')
-    marker_scale: float = setting(10.0, 'diameter of a track sphere in /tracks/markers', unit='m',
+    world_frame: str = setting('world', 'frame of detections and tracks', read_only=True)
+    publish_tentative: bool = setting(False, 'publish tentative tracks on tracks too (field confirmed = 0)')
+    markers_tentative: bool = setting(False, 'draw tentative tracks in tracks/markers as well')
+    marker_scale: float = setting(10.0, 'diameter of a track sphere in tracks/markers', unit='m',
                                   low=0.0, high=1e5, low_open=True)
 
 
-def detections_to_measurements(records: np.ndarray) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None, str]:
-    """``(z (N, 2), R (N, 2, 2) or None, rho (N,) or None, note)`` from detection records.
-
-    Only ``x`` and ``y`` are required (``ValueError`` otherwise). Without all three covariance
-    fields ``R`` is None (the tracker then uses ``detection.sigma``), without ``clutter_density``
-    ``rho`` is None (``clutter.density``); ``note`` says which were missing.
-    """
-    names = set(records.dtype.names or ())
-    if not {'x', 'y'} <= names:
-        raise ValueError(f'detections need fields x and y; the cloud has {sorted(names)}')
-    flat = records.reshape(-1)
-    z = np.column_stack((flat['x'].astype(float), flat['y'].astype(float)))
-    notes = []
-    R = None
-    if set(_COV_FIELDS) <= names:
-        R = np.empty((len(flat), 2, 2))
-        R[:, 0, 0] = flat['cov_xx']
-        R[:, 0, 1] = R[:, 1, 0] = flat['cov_xy']
-        R[:, 1, 1] = flat['cov_yy']
-    else:
-        notes.append('no covariance fields: using detection.sigma')
-    rho = flat['clutter_density'].astype(float) if 'clutter_density' in names else None
-    if rho is None:
-        notes.append('no clutter_density field: using clutter.density')
-    return z, R, rho, '; '.join(notes)
-
-
-class ImmIpdaTrackerNode(Node):
-    """Runs an :class:`ImmIpdaTracker` on ``/detections``."""
+class ImmIpdaTrackerNode(SonarNode):
+    """Runs an :class:`ImmIpdaTracker` on ``detections``."""
 
     def __init__(self, **kwargs) -> None:
-        super().__init__('imm_ipda_tracker', **kwargs)
-        self.params = ConfigParameters(self, TrackerNodeConfig(), on_change=self._on_change)
-        self.config: TrackerNodeConfig = self.params.config
+        super().__init__('imm_ipda_tracker', TrackerNodeConfig(), 'imm_ipda_tracker: tracking', **kwargs)
         self.tracker = ImmIpdaTracker(self.config)
         self.origin_ns: int | None = None
         self.platform: tuple[float, float, float, float] | None = None
         self.rejected_rows = 0
         self.resets = 0
         self._warned: set[str] = set()
-        self.diag = StageDiagnostics('imm_ipda_tracker: tracking')
-
-        inputs = QoSProfile(depth=100, history=HistoryPolicy.KEEP_LAST, reliability=ReliabilityPolicy.RELIABLE)
-        self.create_subscription(PointCloud2, '/detections', self._on_detections, inputs)
-        self.create_subscription(Odometry, '/platform/odometry', self._on_odometry, inputs)
-        outputs = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        # A deep writer queue: a recorder that falls behind for a moment still gets every scan.
-        self.pub_tracks = self.create_publisher(PointCloud2, '/tracks', QoSProfile(depth=100))
-        self.pub_markers = self.create_publisher(MarkerArray, '/tracks/markers', outputs)
-        self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_timer(1.0, self._publish_diagnostics)
+        self.subscribe(PointCloud2, 'detections', self._process, self.input_qos(100))
+        self.subscribe(Odometry, 'platform/odometry', self._on_odometry, self.input_qos(100))
+        self.pub_tracks = self.create_publisher(PointCloud2, 'tracks', output_profile())
+        self.pub_markers = self.create_publisher(MarkerArray, 'tracks/markers', output_profile(10))
         modes = ', '.join(m.name for m in self.tracker.modes)
         self.get_logger().info(f'IMM-IPDA with modes {modes}; P_D {self.config.detection.probability:g}, '
                                f'P_G {self.config.detection.gate_probability:g}, clutter density from '
                                f'{self.config.clutter.source}; tracks in frame {self.config.world_frame!r}')
 
-    def _on_change(self, old: TrackerNodeConfig, new: TrackerNodeConfig) -> None:
-        self.config = new
+    def on_change(self, old: TrackerNodeConfig, new: TrackerNodeConfig) -> None:
         if self.tracker.configure(new):
             self.get_logger().info(f'modes changed to {new.imm.models}: tracker restarted')
+
+    def _restart(self) -> None:
+        self.tracker.reset()
+        self.origin_ns = None
+        self.resets += 1
 
     # -- inputs ------------------------------------------------------------------------------
     def _on_odometry(self, msg: Odometry) -> None:
@@ -124,14 +86,7 @@ class ImmIpdaTrackerNode(Node):
             x, y, yaw = ma.odometry_to_pose(msg)
             self.platform = (ma.header_ns(msg) / 1e9, x, y, yaw)
         except ma.AdapterError as exc:
-            self._say('error', f'odometry dropped: {exc}')
-
-    def _on_detections(self, msg: PointCloud2) -> None:
-        try:
-            self._process(msg)
-        except Exception as exc:  # noqa: BLE001 - a bug must cost one message, not the node
-            self.diag.drop('internal_error')
-            self._say('error', f'/detections message dropped after an internal error: {type(exc).__name__}: {exc}')
+            self.say('error', f'odometry dropped: {exc}', 'bad_odometry')
 
     def _process(self, msg: PointCloud2) -> None:
         started = time.perf_counter()
@@ -140,38 +95,31 @@ class ImmIpdaTrackerNode(Node):
             records = ma.cloud_to_array(msg)
             z, R, rho, note = detections_to_measurements(records)
         except (ma.AdapterError, ValueError) as exc:
-            self.diag.drop('malformed')
-            self._say('error', f'/detections message dropped: {exc}')
+            self.say('error', f'detections message dropped: {exc}', 'malformed')
             return
         if note:
             self._warn_once(note)
         frame = msg.header.frame_id
         if frame and frame != self.config.world_frame:
-            self._warn_once(f'/detections are in frame {frame!r}, tracks are published in '
+            self._warn_once(f'detections are in frame {frame!r}, tracks are published in '
                             f'{self.config.world_frame!r}: set world_frame if that is wrong')
+        if not self.admit(stamp, 'detections', self._restart):
+            return
         if self.origin_ns is None:
             self.origin_ns = stamp          # times relative to the first stamp keep nanosecond resolution
         try:
             tracks = self.tracker.step((stamp - self.origin_ns) * 1e-9, z, R, rho)
         except TrackingError as exc:           # shapes are ours, so this is a bug worth seeing
-            self.diag.drop('tracker_error')
-            self._say('error', f'/detections at {stamp / 1e9:.6f} s dropped: {exc}', key=str(exc))
+            self.say('error', f'detections at {stamp / 1e9:.6f} s dropped: {exc}', 'tracker_error')
             return
+        self.time.accept(stamp)
         rep = self.tracker.report
-        if rep.duplicate_stamp:
-            self.diag.drop('duplicate_stamp')
-            self._say('warning', f'/detections at {stamp / 1e9:.6f} s repeats the last stamp: dropped',
-                      key='duplicate')
-            return
-        if rep.reset:
-            self.resets += 1
-            self.get_logger().warning(f'tracker restarted: {rep.reset}')
         if rep.rejected:
             self.rejected_rows += len(rep.rejected)
             shown = '; '.join(str(r) for r in rep.rejected[:3])
             more = f' (and {len(rep.rejected) - 3} more)' if len(rep.rejected) > 3 else ''
-            self._say('warning', f'/detections at {stamp / 1e9:.6f} s: dropped {len(rep.rejected)} of '
-                      f'{rep.n_measurements} detections: {shown}{more}', key='rows')
+            self.say('warning', f'detections at {stamp / 1e9:.6f} s: dropped {len(rep.rejected)} of '
+                     f'{rep.n_measurements} detections: {shown}{more}')
         self._publish(tracks, stamp)
         self.diag.done(started)
         self.diag.values = self._values(len(z))
@@ -196,18 +144,10 @@ class ImmIpdaTrackerNode(Node):
             values['platform_pose'] = f'x {x:.2f} m, y {y:.2f} m, yaw {np.degrees(yaw):.1f} deg at {t:.3f} s'
         return values
 
-    def _say(self, severity: str, text: str, key: str | None = None) -> None:
-        """Log ``text`` (``'error'`` or ``'warning'``) unless the same ``key`` (default: the text) was
-        logged in the last second: a looping bag repeating one fault does not flood the log."""
-        self.diag.log(self.get_logger(), text if key is None else key, text, severity)
-
     def _warn_once(self, text: str) -> None:
         if text not in self._warned:
             self._warned.add(text)
             self.get_logger().warning(text)
-
-    def _publish_diagnostics(self) -> None:
-        self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))
 
 
 def main(args: list[str] | None = None) -> int:

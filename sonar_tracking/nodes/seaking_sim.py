@@ -1,12 +1,18 @@
 """``seaking_sim``: the simulated scanning sonar (SeaKing 675/325 kHz or the harbour sonar).
 
-Publishes, per sector (DESIGN §4): ``/sonar/sector`` (32FC1 amplitudes), ``/sonar/sector_info``
-(its geometry, same header), ``/sonar/fan`` (mono8 picture, when someone listens),
-``/sonar/truth`` and ``/platform/odometry``; optionally ``/clock``.
+Publishes, per sector (DESIGN §4): ``sonar/sector`` (32FC1 amplitudes; mono8 dB counts with
+``output.coding: db``, as the ``*_structured`` scenarios do), ``sonar/sector_info``
+(its geometry, same header), ``sonar/fan`` (mono8 picture, painted only while someone listens),
+``sonar/truth`` and ``platform/odometry``; and ``/clock`` whenever it stamps with simulated time.
 
-Stamps are simulation time (scenario start = ``stamp_offset``), never the wall clock, so the same
-seed gives the same messages bit for bit. ``rate`` sets the pace: 1 = real time, 0 = as fast as
-the subscribers acknowledge each sector (reliable QoS). Falling behind never skips a sector.
+``rate`` sets the pace: 1 = real time, 0 = as fast as the subscribers acknowledge each sector
+(reliable QoS). Falling behind never skips a sector. ``stamps`` says which clock the messages carry,
+so they agree with the rest of the system:
+
+* ``wall``: the wall clock at which the sector is due (``ros2 topic delay`` reads about 0);
+* ``sim``: simulated time from ``stamp_offset``, with ``/clock`` published so ``use_sim_time``
+  nodes and bags agree; the same seed gives the same messages bit for bit;
+* ``auto`` (default): ``wall`` when the simulator starts at ``rate`` 1, ``sim`` otherwise.
 """
 from __future__ import annotations
 
@@ -16,8 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, LaserScan, PointCloud2
@@ -26,11 +31,11 @@ import msg_adapters as ma
 from msg_adapters.odometry import pose_to_odometry
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fan import PolarCanvas, to_mono8
+from sonar_tracking.core.intensity import decode
 from sonar_tracking.core.sim import SimConfig, SimSector, Simulator, describe
 from sonar_tracking.core.sim.presets import SCENARIOS
-
-from ._params import ConfigParameters, descriptor_for
-from ._runtime import run_node
+from sonar_tracking.ros import (CLOCK_TOPIC, ConfigParameters, SubscriberGate, descriptor_for, output_profile,
+                                 run_node, start_value)
 
 __all__ = ['SimNodeConfig', 'SeaKingSimNode', 'main']
 
@@ -43,12 +48,15 @@ class SimNodeConfig(SimConfig):
                           low=0.0, high=1e4)
     world_frame: str = setting('world', 'frame of truth, odometry and tracks', read_only=True)
     sensor_frame: str = setting('sonar', 'frame of the sectors (the sonar head)', read_only=True)
-    stamp_offset: float = setting(0.0, 'stamp of the scenario start', unit='s', low=0.0, high=4e9, read_only=True)
+    stamps: str = setting('auto', 'clock of the stamps: wall, sim (simulated time, with /clock), or auto (wall when '
+                          'starting at rate 1, else sim)', choices=('auto', 'wall', 'sim'), read_only=True)
+    stamp_offset: float = setting(0.0, 'stamp of the scenario start with sim stamps', unit='s', low=0.0, high=4e9,
+                                  read_only=True)
     fan_size: int = setting(512, 'longer side of /sonar/fan', unit='px', low=16, high=4096, read_only=True)
     fan_dynamic_range_db: float = setting(30.0, 'grey scale of /sonar/fan above the median', unit='dB',
                                           low=1.0, high=120.0)
-    publish_clock: bool = setting(False, 'publish /clock with the simulation time (for use_sim_time)',
-                                  read_only=True)
+    publish_clock: bool = setting(False, 'publish /clock with wall stamps too (it is always published with sim '
+                                  'stamps)', read_only=True)
     shutdown_when_done: bool = setting(False, 'exit once the scenario has ended', read_only=True)
     wait_for_subscribers: int = setting(0, 'start once /sonar/sector and /sonar/sector_info have this many '
                                         'subscribers and every subscriber in the graph is connected (0 = at once)',
@@ -77,29 +85,31 @@ class SeaKingSimNode(Node):
         self.sim = Simulator(self.config, np.random.default_rng(self.config.seed))
         log.info(describe(self.config))
 
-        reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        self.pub_sector = self.create_publisher(Image, '/sonar/sector', reliable)
-        self.pub_info = self.create_publisher(LaserScan, '/sonar/sector_info', reliable)
-        self.pub_fan = self.create_publisher(Image, '/sonar/fan', QoSProfile(depth=1))
-        self.pub_truth = self.create_publisher(PointCloud2, '/sonar/truth', reliable)
-        self.pub_odom = self.create_publisher(Odometry, '/platform/odometry', reliable)
-        self.pub_clock = self.create_publisher(Clock, '/clock', 10) if self.config.publish_clock else None
+        self.wall_stamps = self.config.stamps == 'wall' or (self.config.stamps == 'auto' and self.config.rate == 1.0)
+        reliable = output_profile(10)
+        self.pub_sector = self.create_publisher(Image, 'sonar/sector', reliable)
+        self.pub_info = self.create_publisher(LaserScan, 'sonar/sector_info', reliable)
+        self.pub_fan = self.create_publisher(Image, 'sonar/fan', QoSProfile(depth=1))
+        self.pub_truth = self.create_publisher(PointCloud2, 'sonar/truth', reliable)
+        self.pub_odom = self.create_publisher(Odometry, 'platform/odometry', reliable)
+        clock = self.config.publish_clock or not self.wall_stamps
+        self.pub_clock = self.create_publisher(Clock, CLOCK_TOPIC, 10) if clock else None
 
         self.canvas = self._make_canvas()
         self.sectors = 0
-        self._matched_since: float | None = None
-        self._connected_since: float | None = None
+        c = self.config
+        self.gate = SubscriberGate(self, (self.pub_sector, self.pub_info), (self.pub_sector, self.pub_info,
+                                   self.pub_truth, self.pub_odom), c.wait_for_subscribers, c.start_settle_time)
         self._anchor()
         self.timer = self.create_timer(0.0 if self.config.rate == 0 else 0.005, self._tick)
 
     def _declare_choice(self, name: str, default: str, choices: tuple[str, ...]) -> str:
         s = next(s for s in SimNodeConfig.settings() if s.name == name)
-        value = self.declare_parameter(name, default, descriptor_for(s)).value
+        value = start_value(self, s, default)
         if value not in choices:
             self.get_logger().error(f'parameter {name}: {value!r} is not one of {list(choices)}; using {default!r}')
-            self.set_parameters([Parameter(name, value=default)])
             value = default
-        return value
+        return self.declare_parameter(name, value, descriptor_for(s), ignore_override=True).value
 
     def _make_canvas(self) -> PolarCanvas:
         return PolarCanvas.with_size(self.sim.sensor.coverage(), self.config.fan_size)
@@ -107,6 +117,7 @@ class SeaKingSimNode(Node):
     def _anchor(self) -> None:
         """Tie the next sector's simulation time to now (at start and when ``rate`` changes)."""
         self._wall0 = time.monotonic()
+        self._epoch0_ns = time.time_ns()
         self._sim0 = self.sim.sensor.next_time
 
     def _on_change(self, old: SimNodeConfig, new: SimNodeConfig) -> None:
@@ -120,42 +131,14 @@ class SeaKingSimNode(Node):
         self.config = new
         self._anchor()
 
-    def _ready(self) -> bool:
-        """Whether the first sector may go out (``wait_for_subscribers``).
-
-        Enough subscribers on the sector pair, and then, for ``start_settle_time`` without a change,
-        every subscriber the graph knows of on our topics connected to our publishers: discovery of
-        the other processes (announced every 250 ms with the package's DDS profile) settles first,
-        so nobody misses the start at full speed. Three seconds later the second condition is given
-        up (a subscriber of incompatible QoS never connects).
-        """
-        n = self.config.wait_for_subscribers
-        if n == 0:
-            return True
-        now = time.monotonic()
-        if min(self.pub_sector.get_subscription_count(), self.pub_info.get_subscription_count()) < n:
-            self._matched_since = self._connected_since = None
-            return False
-        self._matched_since = self._matched_since or now
-        pubs = (self.pub_sector, self.pub_info, self.pub_truth, self.pub_odom)
-        if all(p.get_subscription_count() >= self.count_subscribers(p.topic_name) for p in pubs):
-            self._connected_since = self._connected_since or now
-        else:
-            self._connected_since = None
-        settle = self.config.start_settle_time
-        settled = self._connected_since is not None and now - self._connected_since >= settle
-        return settled or now - self._matched_since > settle + 3.0
-
     def _tick(self) -> None:
         if self.sectors == 0:
-            if not self._ready():
+            if not self.gate.ready():
                 self._anchor()
                 time.sleep(0.01)  # a zero-period timer would spin the CPU while we wait
                 return
             if self.config.wait_for_subscribers:
-                counts = ', '.join(f'{p.topic_name} {p.get_subscription_count()}' for p in (
-                    self.pub_sector, self.pub_info, self.pub_truth, self.pub_odom))
-                self.get_logger().info(f'starting; subscribers: {counts}')
+                self.get_logger().info(f'starting; subscribers: {self.gate.describe()}')
         rate = self.config.rate
         if rate == 0:
             self._publish_next()
@@ -180,10 +163,18 @@ class SeaKingSimNode(Node):
         self.sectors += 1
         return True
 
+    def _stamp_ns(self, sim_t: float) -> int:
+        """The stamp of simulated time ``sim_t``: the wall time it is due at, or simulated time."""
+        if not self.wall_stamps:
+            return int(round((self.config.stamp_offset + sim_t) * 1e9))
+        if self.config.rate == 0:
+            return time.time_ns()
+        return self._epoch0_ns + int(round((sim_t - self._sim0) / self.config.rate * 1e9))
+
     def _publish(self, s: SimSector) -> None:
         c = self.config
-        stamp_ns = int(round((c.stamp_offset + s.stamp) * 1e9))
-        self.pub_sector.publish(ma.array_to_image(s.amplitudes, '32FC1', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
+        stamp_ns = self._stamp_ns(s.stamp)
+        self.pub_sector.publish(ma.array_to_image(s.amplitudes, stamp_ns=stamp_ns, frame_id=c.sensor_frame))
         self.pub_info.publish(ma.geometry_to_scan(s.geometry, amplitudes=s.amplitudes, stamp_ns=stamp_ns,
                                                   frame_id=c.sensor_frame))
         ids, states = self.sim.truth(s.stamp)
@@ -195,8 +186,9 @@ class SeaKingSimNode(Node):
         _, _, _, vx, vy = self.sim.scene.platform_pose(s.stamp)
         self.pub_odom.publish(pose_to_odometry(*s.pose, vx, vy, stamp_ns=stamp_ns, frame_id=c.world_frame,
                                                child_frame_id=c.sensor_frame))
-        self.canvas.paint(s.amplitudes, s.geometry)
-        if self.pub_fan.get_subscription_count() > 0:
+        if self.pub_fan.get_subscription_count() > 0:   # painting is most of the cost: only for a viewer
+            self.canvas.paint(s.amplitudes if c.output.coding != 'db' else
+                              decode(s.amplitudes, 'db', db_span=c.output.db_span, full_scale=255.0), s.geometry)
             fan = to_mono8(self.canvas.image, c.fan_dynamic_range_db)
             self.pub_fan.publish(ma.array_to_image(fan, 'mono8', stamp_ns=stamp_ns, frame_id=c.sensor_frame))
         if self.pub_clock is not None:

@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f'error: {args.output} exists already; bag_record never overwrites', file=sys.stderr)
         return 2
 
-    from sonar_tracking.nodes._runtime import prepare_process
+    from sonar_tracking.ros.runtime import prepare_process
     prepare_process()
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor

@@ -51,7 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print(f'warning: topics not in the bag: {missing}', file=sys.stderr)
 
-    from sonar_tracking.nodes._runtime import prepare_process
+    from sonar_tracking.ros.runtime import prepare_process
     prepare_process()
     import rclpy
     from rclpy.duration import Duration

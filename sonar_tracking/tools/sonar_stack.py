@@ -184,7 +184,7 @@ class _GraphProbe:
     """A small rclpy node of the stack's own, to count subscribers for ``wait_for``."""
 
     def __init__(self) -> None:
-        from sonar_tracking.nodes._runtime import configure_dds
+        from sonar_tracking.ros.runtime import configure_dds
         configure_dds()
         import rclpy
         from rclpy.context import Context

@@ -68,3 +68,56 @@ def test_simulated_target_appears_where_truth_says():
     x, y = canvas.point_of(row, col)
     # The sphere's specular point faces the sonar, 0.25 m in front of its centre.
     assert math.hypot(x - truth[0], y - truth[1]) < 0.5
+
+
+def _nearest_cell_image(canvas: PolarCanvas, values: np.ndarray, geometry: SectorGeometry, pose) -> np.ndarray:
+    """Independent reference: every pixel of the canvas, nearest cell by bearing and range, no window."""
+    x, y = canvas.point_of(*np.indices(canvas.image.shape))
+    dx, dy = x - pose[0], y - pose[1]
+    rng = np.hypot(dx, dy)
+    off = np.remainder(np.arctan2(dy, dx) - pose[2] - geometry.angle_min + 0.5 * geometry.angle_increment,
+                       2 * math.pi) - 0.5 * geometry.angle_increment
+    j = np.rint(off / geometry.angle_increment)
+    dr = geometry.range_resolution if geometry.n_bins > 1 else max(geometry.range_min, 1.0)
+    i = np.rint((rng - geometry.range_min) / dr)
+    inside = (j >= 0) & (j < geometry.n_beams) & (i >= 0) & (i < geometry.n_bins)
+    out = np.full(canvas.image.shape, np.nan, np.float32)
+    out[inside] = values[i[inside].astype(int), j[inside].astype(int)]
+    return out
+
+
+GEOMETRIES = [
+    GEOM,
+    SectorGeometry(math.radians(-45), math.radians(0.9), 10, 0.025, 29.975, 600),
+    SectorGeometry(math.radians(170), math.radians(0.9), 30, 0.05, 49.95, 500),
+    SectorGeometry(0.1, 0.01, 3, 5.0, 6.0, 5),
+]
+
+
+@pytest.mark.parametrize('geometry', GEOMETRIES)
+@pytest.mark.parametrize('pose', [(0.0, 0.0, 0.0), (1.5, -2.0, 0.4), (10.0, 3.0, -2.9)])
+def test_cached_paint_is_identical_to_the_per_pixel_mapping(geometry, pose):
+    """The cached pixel-to-cell map gives the same image on the first paint and on every repeat."""
+    rng = np.random.default_rng(3)
+    canvas = PolarCanvas.with_size(fan_extent(geometry, margin=15.0), 300)
+    held = PolarCanvas.with_size(fan_extent(geometry, margin=15.0), 300)
+    peak = np.full(canvas.image.shape, np.nan, np.float32)
+    for _ in range(3):
+        values = rng.random(geometry.shape).astype(np.float32)
+        canvas.paint(values, geometry, pose)
+        held.paint(values, geometry, pose, hold_max=True)
+        reference = _nearest_cell_image(canvas, values, geometry, pose)
+        peak = np.fmax(peak, reference)
+        np.testing.assert_array_equal(canvas.image, reference)
+        np.testing.assert_array_equal(held.image, peak)
+    assert len(canvas._maps) == 1
+
+
+def test_cell_map_cache_is_bounded():
+    canvas = PolarCanvas(-30, 30, -30, 30, 0.1, cache_pixels=50_000)
+    values = np.ones(GEOM.shape, np.float32)
+    for k in range(20):
+        canvas.paint(values, GEOM, (0.1 * k, 0.0, 0.0))
+    assert canvas._cached <= 50_000 or len(canvas._maps) == 1
+    assert canvas._cached == sum(p.size for p, _ in canvas._maps.values())
+    assert 1 <= len(canvas._maps) < 20

@@ -18,7 +18,7 @@ def test_db_counts_decode_to_amplitude_with_the_span_over_the_full_count_range()
 
 
 def test_float_db_values_are_decibels_and_power_and_display_codings():
-    assert decode(np.array([20.0]), 'db')[0] == pytest.approx(10.0)
+    assert decode(np.array([20.0, 0.0, -20.0]), 'db') == pytest.approx([10.0, 1.0, 0.1])   # float dB: 0 dB is a level
     assert decode(np.array([4.0, 0.0]), 'linear_power').tolist() == [2.0, 0.0]
     d = decode(np.array([0, 255, 128], np.uint8), 'display', gamma=2.0, full_scale=255.0)
     assert d.tolist() == pytest.approx([0.0, 1.0, (128 / 255) ** 2])

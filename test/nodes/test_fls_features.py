@@ -3,7 +3,6 @@ dropped with a reason while the node keeps running; parameters refused with reas
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -11,7 +10,7 @@ import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 import msg_adapters as ma
-from sonar_tracking.nodes._image_info import ImageInfoPairer, grid_to_map_info, map_info_to_grid
+from msg_adapters.map_info import grid_to_map_info, map_info_to_grid
 
 pytestmark = pytest.mark.ros
 
@@ -28,13 +27,32 @@ def subscribe(ros, got: dict):
     return [ros.node.create_subscription(typ, t, got[t].append, KEEP_ALL) for t, typ in topics.items()]
 
 
+def complete_frames(ros, got: dict, at_least: int = 3, timeout: float = 10.0) -> dict:
+    """A snapshot of ``got`` once image, image_info and regions hold the same frames (at least
+    ``at_least``), so no frame is half in."""
+    snap = {}
+
+    def settled() -> bool:
+        now = {t: list(m) for t, m in got.items()}
+        counts = {len(m) for m in now.values()}
+        if len(counts) != 1 or counts.pop() < at_least:
+            return False
+        last = (ma.header_ns(now['/fls/image'][-1]), ma.stamp_to_ns(now['/fls/image_info'][-1].map_load_time),
+                ma.header_ns(now['/fls/regions'][-1]))
+        snap.update(now)
+        return len(set(last)) == 1
+
+    ros.wait(settled, timeout, f'{at_least} complete frames')
+    return snap
+
+
 def frames_of(got: dict) -> list[tuple]:
     """``(image array, grid, regions, frame_id)`` per stamp, paired as a consumer would."""
-    pairer, out = ImageInfoPairer(), []
+    pairer, out = ma.StampPairer(('image', 'info')), []
     regions = {ma.header_ns(m): m for m in got['/fls/regions']}
     for img, info in zip(got['/fls/image'], got['/fls/image_info']):
-        pairer.add_info(info)
-        pair = pairer.add_image(img)
+        pairer.add('info', ma.stamp_to_ns(info.map_load_time), info)
+        pair = pairer.add('image', ma.header_ns(img), img)
         assert pair is not None, 'image and image_info must come with the same stamp'
         stamp = ma.header_ns(img)
         assert img.encoding == '32FC1' and regions[stamp].header.frame_id == img.header.frame_id
@@ -56,11 +74,9 @@ def test_images_grid_and_regions_from_the_simulator(ros, launch):
     sim = launch('seaking_sim', 'scenario:=fls14', 'seed:=2', 'duration:=15.2', 'rate:=0.0', 'snr_db:=25.0',
                  'wait_for_subscribers:=1', 'shutdown_when_done:=true')
     ros.wait(lambda: sim.poll() is not None, 60.0, 'the simulator to finish')
-    ros.wait(lambda: len(got['/fls/regions']) >= 3, 10.0, 'three frames')
-    time.sleep(0.3)
+    frames = frames_of(complete_frames(ros, got))
     for s in subs:
         ros.node.destroy_subscription(s)
-    frames = frames_of(got)
     assert len(frames) >= 3, node.stderr.read() if node.poll() is not None else ''
     truth = ma.cloud_to_array(truths[-1])[0]
     for image, grid, regions, frame_id in frames:
@@ -88,11 +104,9 @@ def test_moving_platform_regions_in_the_world_frame(ros, launch):
     sim = launch('seaking_sim', 'scenario:=sea_trial', 'seed:=1', 'duration:=41.0', 'rate:=0.0', 'snr_db:=30.0',
                  'wait_for_subscribers:=1', 'shutdown_when_done:=true')
     ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
-    ros.wait(lambda: len(got['/fls/regions']) >= 3, 10.0, 'three frames')
-    time.sleep(0.3)
+    frames = frames_of(complete_frames(ros, got))
     for s in subs:
         ros.node.destroy_subscription(s)
-    frames = frames_of(got)
     # Truth along the way: every target's position at every sector stamp.
     path = np.array([(t['x'], t['y']) for m in truths for t in ma.cloud_to_array(m)])
     # The image follows the AUV along +x (keeping the last two sweeps' footprints).
@@ -106,64 +120,6 @@ def test_moving_platform_regions_in_the_world_frame(ros, launch):
             assert d < 1.5, f'region at ({r["x"]:.1f}, {r["y"]:.1f}) is {d:.1f} m from every target'
             found += 1
     assert found >= len(frames)  # on average a target or more per frame
-
-
-def test_bad_input_is_dropped_with_a_reason_and_the_node_keeps_running(ros, launch):
-    from sensor_msgs.msg import Image, LaserScan
-
-    from sonar_tracking.core.sim import SimConfig, Simulator
-    got = {}
-    subs = subscribe(ros, got)
-    node = launch('fls_features', 'sonar_pose:=[100.0, 50.0, 90.0]', 'frame:=world')
-    wait_for_node(ros)
-    qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-    pub_img = ros.node.create_publisher(Image, '/sonar/sector', qos)
-    pub_info = ros.node.create_publisher(LaserScan, '/sonar/sector_info', qos)
-    ros.wait(lambda: pub_img.get_subscription_count() and pub_info.get_subscription_count()
-             and all(s.get_publisher_count() for s in subs), 20.0, 'the node')
-    sim = Simulator(SimConfig.for_scenario('fls14', snr_db=25.0), np.random.default_rng(0))
-    good = [sim.next_sector() for _ in range(24)]  # two sweeps and more
-
-    def send(amps, geom, stamp_ns, encoding='32FC1', image=None, pause=0.2):
-        pub_img.publish(image if image is not None else ma.array_to_image(amps, encoding, stamp_ns=stamp_ns,
-                                                                           frame_id='sonar'))
-        pub_info.publish(ma.geometry_to_scan(geom, stamp_ns=stamp_ns, frame_id='sonar'))
-        # The two halves travel on two topics; give them time to pair before the next sector (a
-        # later pair makes the pairer give up on earlier halves, as it should).
-        time.sleep(pause)
-
-    s0 = good[0]
-    ns = lambda k: 1_000_000_000 + k * 1_000_000
-    send(None, s0.geometry, ns(1), image=Image(header=ma.header(ns(1), 'sonar'), height=600, width=10,
-                                                encoding='rgb8', step=30, data=bytes(600 * 30)))
-    send(s0.amplitudes[:, :8], s0.geometry, ns(2))                  # 8 beams, geometry says 10
-    send(None, s0.geometry, ns(3), image=Image(header=ma.header(ns(3), 'sonar'), height=0, width=0,
-                                                encoding='32FC1', step=0, data=b''))
-    send(np.zeros_like(s0.amplitudes), s0.geometry, ns(4))
-    nan = s0.amplitudes.copy()
-    nan[5, 5] = np.nan
-    send(nan, s0.geometry, ns(5))
-    for s in good:
-        send(s.amplitudes, s.geometry, int(2e9 + s.stamp * 1e9), pause=0.03)
-    ros.wait(lambda: len(got['/fls/regions']) >= 2, 30.0, 'frames after the bad sectors')
-    time.sleep(0.3)
-    for s in subs:
-        ros.node.destroy_subscription(s)
-    ros.node.destroy_publisher(pub_img)
-    ros.node.destroy_publisher(pub_info)
-    assert node.poll() is None, 'the node must keep running'
-    frames = frames_of(got)
-    # No odometry: sectors placed at sonar_pose, (100, 50) looking along +y.
-    _, grid, regions, _ = frames[-1]
-    assert len(regions) == 1 and regions[0]['x'] == pytest.approx(100.0, abs=1.0)
-    assert regions[0]['y'] == pytest.approx(50.0 + 15.0, abs=1.0)
-    assert regions[0]['bearing'] == pytest.approx(0.0, abs=0.1) and regions[0]['range'] == pytest.approx(15, abs=1)
-    node.send_signal(2)
-    node.wait(10)
-    err = node.stderr.read()
-    for message in ("unsupported image encoding 'rgb8'", 'sector image has 8 beams', 'zero size', 'all zero',
-                    'NaN or infinite'):
-        assert message in err, message
 
 
 def test_parameters_refused_with_reasons_or_applied(ros, launch):
@@ -180,7 +136,7 @@ def test_parameters_refused_with_reasons_or_applied(ros, launch):
     r = set_('segment.seed_db', 1.0)
     assert not r.successful and 'grow_db' in r.reason
     r = set_('image.resolution', 0.05)
-    assert not r.successful and 'start-up' in r.reason
+    assert not r.successful and 'read-only' in r.reason
     r = set_('filter.window_bins', 4)
     assert not r.successful and 'odd' in r.reason
     r = set_('features.glcm_levels', 1)

@@ -3,7 +3,6 @@ what the node must survive (an empty image, a frame without regions, bad input),
 from __future__ import annotations
 
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +11,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 import msg_adapters as ma
 from sonar_tracking.core.fls import ImageGrid
-from sonar_tracking.nodes._image_info import grid_to_map_info
+from msg_adapters.map_info import grid_to_map_info
 
 pytestmark = pytest.mark.ros
 
@@ -74,7 +73,10 @@ class Harness:
                                                    stamp_ns=ns, frame_id='world'))
 
     def wait_tracks(self, n, timeout=30.0):
-        self.ros.wait(lambda: len(self.tracks) >= n, timeout, f'{n} /gpf/tracks messages')
+        try:
+            self.ros.wait(lambda: len(self.tracks) >= n, timeout, f'{n} /gpf/tracks messages')
+        except AssertionError as exc:
+            raise AssertionError(f'{exc}; got {len(self.tracks)}; the node said: {self.stop()[-3000:]}') from None
 
     def stop(self) -> str:
         """SIGINT the node; its stderr (the log)."""
@@ -111,7 +113,6 @@ def test_tracks_a_target_through_an_empty_image_and_a_frame_without_regions(trac
             tracker.send(5.0 * k, synthetic_frame(rng, xy))            # echo but no region
         else:
             tracker.send(5.0 * k, synthetic_frame(rng, xy), regions_at(xy))
-        time.sleep(0.05)
     tracker.wait_tracks(n)
     stamps = [ma.header_ns(m) for m in tracker.tracks]
     assert stamps == [int(5e9 * k) for k in range(n)]
@@ -145,63 +146,6 @@ def test_no_target_gives_empty_tracks_messages(tracker):
     assert tracker.tracks[0].width == 0 and len(tracker.tracks[0].fields) == len(ma.GPF_TRACK_DTYPE.names)
 
 
-def test_bad_input_is_dropped_with_a_reason_and_the_node_keeps_running(tracker):
-    from nav_msgs.msg import MapMetaData
-    from sensor_msgs.msg import Image
-    rng = np.random.default_rng(3)
-    tracker.send(0.0, synthetic_frame(rng, path(0)), regions_at(path(0)))
-    tracker.send(5.0, synthetic_frame(rng, path(1)), regions_at(path(1)))
-    tracker.wait_tracks(2)
-    good_id = int(ma.cloud_to_array(tracker.tracks[-1])['track_id'][0])
-    img = synthetic_frame(rng, path(2))
-    ns = lambda s: int(s * 1e9)   # noqa: E731
-    # 1. mono8 instead of 32FC1.
-    tracker.send(6.0, image_msg=ma.array_to_image((img * 10).astype(np.uint8), 'mono8', stamp_ns=ns(6.0)))
-    # 2. The image does not match its image_info.
-    tracker.send(7.0, img[:100])
-    # 3. NaN and negative pixels.
-    bad = img.copy()
-    bad[10, 10] = np.nan
-    tracker.send(8.0, bad)
-    neg = img.copy()
-    neg[3, 3] = -1.0
-    tracker.send(9.0, neg)
-    # 4. Regions without positions, and an image_info with a tilted origin.
-    tracker.send(9.5, img, regions_msg=ma.array_to_cloud(np.zeros(1, [('range', '<f8')]), stamp_ns=ns(9.5)))
-    info = grid_to_map_info(GRID, ns(9.7))
-    info.origin.orientation.x, info.origin.orientation.w = 1.0, 0.0
-    tracker.send(9.7, img, info_msg=info)
-    # 5. Data short of its step; an image without its info and regions.
-    short = ma.array_to_image(img, '32FC1', stamp_ns=ns(9.8))
-    short.data = bytes(short.data)[:100]
-    tracker.send(9.8, image_msg=short)
-    tracker.pub_image.publish(Image(header=ma.header(ns(9.9), 'world'), encoding='32FC1'))
-    # 6. Good frames again, then the same stamp again and a small step back: dropped.
-    # (Pauses: two frames of one stamp on three topics must not interleave.)
-    for stamp in (10.0, 10.0, 9.0 + 1e-3):
-        tracker.send(stamp, img, regions_at(path(2)))
-        time.sleep(0.3)
-    tracker.send(15.0, synthetic_frame(rng, path(3)), regions_at(path(3)))
-    tracker.wait_tracks(4)
-    time.sleep(0.5)
-    stamps = [ma.header_ns(m) / 1e9 for m in tracker.tracks]
-    assert stamps == [0.0, 5.0, 10.0, 15.0], stamps
-    last = ma.cloud_to_array(tracker.tracks[-1])
-    assert good_id in last['track_id'].tolist(), 'the track survives the bad frames'
-    # 7. Time going back far (a bag looping): a clean restart with new ids.
-    tracker.send(1.0, synthetic_frame(rng, path(0)), regions_at(path(0)))
-    tracker.wait_tracks(5)
-    restart = ma.cloud_to_array(tracker.tracks[-1])['track_id'].tolist()
-    assert restart and min(restart) > good_id
-    assert tracker.proc.poll() is None, 'the node must keep running'
-    assert MapMetaData  # the type used above
-    err = tracker.stop()
-    assert 'Traceback' not in err, err
-    for message in ("must be 32FC1", "image_info says", "NaN or infinite", "negative pixels", "need fields x and y",
-                    "tilted", "data is short", "not newer than the last", "time went back", "had only image"):
-        assert message in err, message
-
-
 @pytest.mark.parametrize('tracker', [('particles:=5', 'fusion.mode:=best', 'lost.max_time:=40.0')], indirect=True)
 def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker):
     from rcl_interfaces.srv import GetParameters, SetParameters
@@ -229,7 +173,7 @@ def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker)
     r = set_('fusion.thresholds', [1.0, 2.0])
     assert not r.successful and 'one or 5' in r.reason
     r = set_('seed', 4)
-    assert not r.successful and 'start-up' in r.reason
+    assert not r.successful and 'read-only' in r.reason
     assert set_('fusion.mode', 'wf').successful
     assert set_('cues.features', [3.0, 24.0]).successful
     rng = np.random.default_rng(5)
@@ -259,7 +203,6 @@ def test_tracks_targets_from_the_simulated_sonar_through_fls_features(ros, launc
                  'shutdown_when_done:=true')
     ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
     ros.wait(lambda: len(tracks) >= 7, 20.0, 'tracks of every frame')
-    time.sleep(0.3)
     for s in subs:
         ros.node.destroy_subscription(s)
     path_xy = np.array([(t['x'], t['y']) for m in truth for t in ma.cloud_to_array(m)])

@@ -1,8 +1,8 @@
 """The seaking_sim node over real DDS: determinism, topics, parameters good and bad."""
 from __future__ import annotations
 
+import re
 import subprocess
-import time
 
 import numpy as np
 import pytest
@@ -15,17 +15,21 @@ pytestmark = pytest.mark.ros
 KEEP_ALL = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
 
 
-def record(ros, proc: subprocess.Popen, topics: dict, raw: bool, timeout: float = 60.0) -> dict:
-    """Subscribe to ``{topic: type}`` and collect until ``proc`` exits."""
+def record(ros, proc: subprocess.Popen, topics: dict, raw: bool, timeout: float = 60.0) -> tuple[dict, str]:
+    """Subscribe to ``{topic: type}``, collect until ``proc`` exits and every sector it says it published
+    has arrived on every topic; ``(messages by topic, the simulator's log)``."""
     got = {t: [] for t in topics}
     subs = [ros.node.create_subscription(typ, t, got[t].append, KEEP_ALL, raw=raw) for t, typ in topics.items()]
     try:
         ros.wait(lambda: proc.poll() is not None, timeout, 'the simulator to finish')
-        time.sleep(0.5)
+        err = proc.stderr.read()
+        sent = re.search(r'finished after (\d+) sectors', err)
+        assert sent, err
+        ros.wait(lambda: all(len(m) >= int(sent.group(1)) for m in got.values()), 20.0, 'every published sector')
     finally:
         for s in subs:
             ros.node.destroy_subscription(s)
-    return got
+    return got, err
 
 
 def sim_topics():
@@ -38,8 +42,9 @@ def test_same_seed_same_messages_bit_for_bit(ros, launch):
     for _ in range(2):
         proc = launch('seaking_sim', 'scenario:=fls9', 'seed:=3', 'duration:=3.0', 'rate:=0.0',
                       'wait_for_subscribers:=1', 'shutdown_when_done:=true')
-        runs.append(record(ros, proc, sim_topics(), raw=True))
-        assert proc.returncode == 0, proc.stderr.read()
+        got, err = record(ros, proc, sim_topics(), raw=True)
+        runs.append(got)
+        assert proc.returncode == 0, err
     a, b = runs
     # 3 s of pings at 50 ms, 10 per sector.
     assert len(a['/sonar/sector']) == 6
@@ -53,7 +58,7 @@ def test_publishes_paired_sectors_truth_and_odometry(ros, launch):
     topics = sim_topics() | {'/platform/odometry': Odometry}
     proc = launch('seaking_sim', 'scenario:=sea_trial', 'duration:=4.0', 'rate:=0.0', 'wait_for_subscribers:=1',
                   'shutdown_when_done:=true', 'sector_size:=13')
-    got = record(ros, proc, topics, raw=False)
+    got, _ = record(ros, proc, topics, raw=False)
     assert len(got['/sonar/sector']) == len(got['/sonar/sector_info']) == len(got['/sonar/truth']) > 2
     for img, scan, truth in zip(got['/sonar/sector'], got['/sonar/sector_info'], got['/sonar/truth']):
         amps, geom = ma.sector_from_messages(img, scan)
@@ -73,22 +78,21 @@ def test_parameter_file_from_config(ros, launch):
     path = Path(__file__).resolve().parents[2] / 'config' / 'sim_seaking325.yaml'
     proc = launch('seaking_sim', 'rate:=0.0', 'duration:=2.0', 'wait_for_subscribers:=1', 'shutdown_when_done:=true',
                   params_file=path)
-    got = record(ros, proc, sim_topics(), raw=False)
+    got, err = record(ros, proc, sim_topics(), raw=False)
     amps, geom = ma.sector_from_messages(got['/sonar/sector'][0], got['/sonar/sector_info'][0])
     # 325 kHz, 50 m, 1.8 deg steps, 20 pings per sector, continuous turn.
     assert geom.angle_increment == pytest.approx(np.radians(1.8), rel=1e-6) and geom.n_beams == 20
     assert geom.range_max == pytest.approx(50.0 - 50.0 / 1200, rel=1e-4)
     assert geom.ping_period == pytest.approx(2 * 50.0 / 1500.0 + 0.01, rel=1e-6)
-    assert 'SeaKing 325 kHz' in proc.stderr.read()
+    assert 'SeaKing 325 kHz' in err
 
 
 def test_bad_startup_parameters_are_refused_and_the_node_keeps_running(ros, launch):
     proc = launch('seaking_sim', 'scenario:=fls3', 'preset:=seaking999', 'seaking.range_max:=-5.0',
                   'seaking.n_bins:=0', 'rate:=0.0', 'duration:=1.0', 'wait_for_subscribers:=1',
                   'shutdown_when_done:=true')
-    got = record(ros, proc, sim_topics(), raw=False)
-    err = proc.stderr.read()
-    assert "preset: 'seaking999' is not one of" in err
+    got, err = record(ros, proc, sim_topics(), raw=False)
+    assert "preset = 'seaking999' is not one of" in err
     assert 'seaking.range_max' in err and 'seaking.n_bins' in err
     assert got['/sonar/sector'], err
     amps, geom = ma.sector_from_messages(got['/sonar/sector'][0], got['/sonar/sector_info'][0])
@@ -109,9 +113,9 @@ def test_runtime_parameter_changes_refused_with_reason_or_applied(ros, launch):
     r = set_('clutter_lambda', -1.0)
     assert not r.successful and 'clutter_lambda' in r.reason
     r = set_('seaking.range_max', 50.0)
-    assert not r.successful and 'start-up' in r.reason
+    assert not r.successful and 'read-only' in r.reason
     r = set_('preset', 'seaking325')
-    assert not r.successful and 'start-up' in r.reason
+    assert not r.successful and 'read-only' in r.reason
     r = set_('snr_db', 'loud')
     assert not r.successful
     assert set_('snr_db', 30.0).successful
@@ -140,10 +144,12 @@ def test_fan_image_shows_the_target_where_truth_says(ros, launch):
     proc = launch('seaking_sim', 'scenario:=fls14', 'snr_db:=40.0', 'duration:=5.2', 'rate:=0.0', 'fan_size:=600',
                   'wait_for_subscribers:=1', 'shutdown_when_done:=true')
     ros.wait(lambda: proc.poll() is not None, 60.0, 'the simulator to finish')
-    time.sleep(0.5)
+    err = proc.stderr.read()
+    sent = int(re.search(r'finished after (\d+) sectors', err).group(1))
+    ros.wait(lambda: len(truths) >= sent and fans and ma.header_ns(fans[-1]) == ma.header_ns(truths[-1]), 20.0,
+             'the fan of the last sector')
     for s in subs:
         ros.node.destroy_subscription(s)
-    assert fans, proc.stderr.read()
     # The canvas the node paints into, rebuilt from the same configuration.
     cfg = SimConfig.for_scenario('fls14')
     canvas = PolarCanvas.with_size(SeaKingSonar(cfg.seaking, cfg.sector_size).coverage(), 600)

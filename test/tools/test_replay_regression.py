@@ -17,7 +17,8 @@ import msg_adapters as ma
 from sonar_tracking.core.detection import ActiveDetector
 from sonar_tracking.core.tracking import ImmIpdaTracker
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
-from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig, detections_to_measurements
+from sonar_tracking.core.tracking.detections import detections_to_measurements
+from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
 from sonar_tracking.tools.bags import bag_topics, read_bag
 
 pytestmark = pytest.mark.ros
@@ -49,13 +50,15 @@ def bag(tmp_path_factory):
 
 
 def core_tracks(bag: Path) -> list[tuple[int, np.ndarray]]:
-    """The bag through the core, as the two nodes process it: ``[(stamp_ns, tracks), ...]``."""
+    """The bag through the core, as the two nodes process it: ``[(stamp_ns, tracks), ...]`` (the tracks the
+    node publishes: confirmed ones unless ``publish_tentative``)."""
     from rosbags.typesys import Stores, get_typestore
     store = get_typestore(Stores.ROS2_JAZZY)
     types = {t.name: t.msgtype for t in bag_topics(bag)}
     det_cfg = DetectorNodeConfig.from_flat({'sonar_pose': (-2000.0, 0.0, 0.0)})
     det = ActiveDetector(det_cfg, det_cfg.esc.desired_clutter_density)
-    trk = ImmIpdaTracker(TrackerNodeConfig.from_flat(_tracker_params()))
+    params = _tracker_params()
+    trk = ImmIpdaTracker(TrackerNodeConfig.from_flat(params))
     pairer = ma.SectorPairer()
     out, origin = [], None
     for m in read_bag(bag, ['/sonar/sector', '/sonar/sector_info']):
@@ -68,7 +71,8 @@ def core_tracks(bag: Path) -> list[tuple[int, np.ndarray]]:
         records = np.frombuffer(ma.array_to_cloud(result.detections).data, dtype=np.uint8).view(ma.DETECTION_DTYPE)
         z, R, rho, _ = detections_to_measurements(records)
         origin = pair.stamp_ns if origin is None else origin
-        out.append((pair.stamp_ns, trk.step((pair.stamp_ns - origin) * 1e-9, z, R, rho)))
+        tracks = trk.step((pair.stamp_ns - origin) * 1e-9, z, R, rho)
+        out.append((pair.stamp_ns, tracks if params['publish_tentative'] else tracks[tracks['confirmed'] != 0]))
     return out
 
 

@@ -21,10 +21,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..fls.pipeline import FlsConfig, FlsFrame, FlsProcessor
-from ..sim import SimConfig, Simulator
+from ..intensity import decode
+from ..sim import OutputConfig, SimConfig, Simulator
 from ..sim.sensor import SimSector
 
-__all__ = ['TrackingFrame', 'simulate_tracking_frames', 'imaged_truth', 'ping_table']
+__all__ = ['TrackingFrame', 'simulate_tracking_frames', 'imaged_truth', 'ping_table', 'sim_amplitudes']
 
 
 @dataclass(eq=False)
@@ -79,10 +80,19 @@ def imaged_truth(sim: Simulator, sectors: list[SimSector]) -> tuple[np.ndarray, 
     return ids, states, when
 
 
+def sim_amplitudes(sector: SimSector, output: OutputConfig) -> np.ndarray:
+    """A simulated sector's values as the simulator's linear amplitude: 8-bit dB counts decoded
+    (``intensity.decode``) and scaled back by the gain floor, 0 staying 0; float values as they are."""
+    if output.coding != 'db':
+        return sector.amplitudes
+    return decode(sector.amplitudes, 'db', db_span=output.db_span, full_scale=255.0) * output.gain_floor
+
+
 def simulate_tracking_frames(scenario: str, seed: int | np.random.SeedSequence, config: FlsConfig | None = None,
                              preset: str = '', **sim_overrides) -> list[TrackingFrame]:
     """All frames of a SeaKing scenario (whole sweeps), processed as the ``fls_features`` node
-    does, each with its imaged truth. ``sim_overrides`` are flat SimConfig settings."""
+    does, each with its imaged truth. ``sim_overrides`` are flat SimConfig settings. Sectors in
+    8-bit dB output (structured scenarios) are decoded to linear amplitude first."""
     cfg = SimConfig.for_scenario(scenario, preset, **sim_overrides)
     if cfg.is_harbour:
         raise ValueError(f'scenario {scenario} on the harbour sonar has no FLS images; use a SeaKing preset')
@@ -92,7 +102,8 @@ def simulate_tracking_frames(scenario: str, seed: int | np.random.SeedSequence, 
     out: list[TrackingFrame] = []
     while (sector := sim.next_sector()) is not None:
         pending.append(sector)
-        for frame in processor.add_sector(sector.amplitudes, sector.geometry, sector.pose, sector.stamp):
+        values = sim_amplitudes(sector, cfg.output)
+        for frame in processor.add_sector(values, sector.geometry, sector.pose, sector.stamp):
             members, pending = pending[:frame.sectors], pending[frame.sectors:]
             ids, states, when = imaged_truth(sim, members)
             out.append(TrackingFrame(frame, ids, states, when))

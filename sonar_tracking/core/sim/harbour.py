@@ -80,6 +80,7 @@ class HarbourSonar:
         self.geometry = config.geometry()
         self.scan_index = 0
         self._lam_cache: tuple[tuple, np.ndarray | float] | None = None
+        self._static_cache: tuple[tuple, np.ndarray] | None = None
 
     def reset(self) -> None:
         """Start again from the first scan."""
@@ -119,12 +120,7 @@ class HarbourSonar:
         amps = self.amplitude.clutter(lam_cells, rng)
         if scene.targets:
             _, states = scene.truth(t)
-            dx, dy = states[:, 0] - x, states[:, 1] - y
-            rng_ = np.hypot(dx, dy)
-            brg = np.angle(np.exp(1j * (np.arctan2(dy, dx) - yaw)))
-            i = np.floor((rng_ - (g.range_min - 0.5 * self.config.cell_depth)) / self.config.cell_depth).astype(int)
-            j = np.floor((brg - (g.angle_min - 0.5 * g.angle_increment)) / g.angle_increment).astype(int)
-            inside = (i >= 0) & (i < g.n_bins) & (j >= 0) & (j < g.n_beams)
+            i, j, inside, _, _ = self.cell_of(states[:, :2], pose)
             snr = np.array([tg.snr_db for tg in scene.targets])
             if inside.any():
                 ii, jj = i[inside], j[inside]
@@ -134,4 +130,47 @@ class HarbourSonar:
                 target_amp = np.zeros(g.shape)
                 np.maximum.at(target_amp, (ii, jj), echo)
                 amps[ii, jj] = target_amp[ii, jj]
+        if scene.structure is not None:
+            amps += scene.structure.fluctuate(self._static(scene, pose), rng)
         return SimSector(stamp=t, amplitudes=amps.astype(np.float32), geometry=g, pose=pose, end_of_sweep=True)
+
+    def cell_of(self, xy: np.ndarray, pose: tuple[float, float, float]) -> tuple[np.ndarray, ...]:
+        """Cell ``(i, j)`` of world points ``(K, 2)``, whether inside the window, their range and unit
+        direction from the sonar ``(K, 2)``."""
+        g = self.geometry
+        x, y, yaw = pose
+        dx, dy = xy[:, 0] - x, xy[:, 1] - y
+        rng_ = np.hypot(dx, dy)
+        brg = np.angle(np.exp(1j * (np.arctan2(dy, dx) - yaw)))
+        i = np.floor((rng_ - (g.range_min - 0.5 * self.config.cell_depth)) / self.config.cell_depth).astype(int)
+        j = np.floor((brg - (g.angle_min - 0.5 * g.angle_increment)) / g.angle_increment).astype(int)
+        inside = (i >= 0) & (i < g.n_bins) & (j >= 0) & (j < g.n_beams)
+        return i, j, inside, rng_, np.stack([dx, dy], axis=1) / np.maximum(rng_, 1e-9)[:, None]
+
+    def _static(self, scene: Scene, pose: tuple[float, float, float]) -> np.ndarray:
+        """Mean echo of the static structure per cell (re the clutter mean), cached per pose.
+
+        A wall's scatterers carry its level times their spacing: a cell sums them over its width
+        ``r * cell_width``, so a wall across the beam fills it with the wall's level; a pile lands
+        in one cell with its level.
+        """
+        st = scene.structure
+        key = (id(st), scene.lam, pose)
+        if self._static_cache is not None and self._static_cache[0] == key:
+            return self._static_cache[1]
+        g = self.geometry
+        mean = np.zeros(g.shape)
+        for part in st.scatterers():
+            i, j, inside, r, u = self.cell_of(part.points, pose)
+            level = part.response(-u)
+            extended = ~np.all(part.normals == 0.0, axis=1)
+            level = np.where(extended, level / (np.maximum(r, 1e-9) * self.config.cell_width), level)
+            np.add.at(mean, (i[inside], j[inside]), level[inside])
+        seabed, ring = st.range_profile(g.ranges())
+        rows = np.flatnonzero(seabed)
+        if rows.size:
+            mean[rows] += seabed[rows, None] * st.texture(self.cell_centres(pose)[rows])
+        mean += ring[:, None]
+        mean /= scene.lam
+        self._static_cache = (key, mean)
+        return mean

@@ -18,9 +18,15 @@ Scenarios:
 * ``sea_trial``: FLS §5.2: AUV at 0.5 m/s, two targets at 0.6-0.7 m/s with current disturbance,
   crossing at mid-time, 50 m range.
 * ``clutter``: no targets (for measuring false-alarm statistics), any sensor.
+* ``<name>_structured`` for ``scenario1``, ``scenario2`` and ``fls1`` .. ``fls14``: the same targets
+  (same seed, same paths) in a scene with static structure (tank walls or harbour quay,
+  breakwater and piles), a seabed band, transducer ringdown, and 8-bit dB output
+  (:data:`STRUCTURE_PRESETS`; see :mod:`.structure`).
+* ``structure_only``: the structured tank (SeaKing) or harbour with no target at all.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Callable
@@ -31,7 +37,7 @@ from .motion import DraggedTrajectory, ScriptedTrajectory, Segment, StaticTrajec
 from .scene import ClutterRegion, Scene, Target
 from .shapes import shape
 
-__all__ = ['SENSOR_PRESETS', 'SCENARIOS', 'ScenarioInfo', 'scenario_info', 'build_scene', 'FLS_TARGETS',
+__all__ = ['SENSOR_PRESETS', 'STRUCTURE_PRESETS', 'SCENARIOS', 'ScenarioInfo', 'scenario_info', 'build_scene', 'FLS_TARGETS',
            'HARBOUR_SONAR_XY']
 
 #: Flat setting overrides of each sensor preset (names as in SimConfig).
@@ -41,6 +47,14 @@ SENSOR_PRESETS: dict[str, dict] = {
                    'seaking.vertical_beam_width_deg': 40.0, 'seaking.absorption_db_per_m': 0.2},
     'seaking325': {'seaking.frequency_khz': 325.0, 'seaking.beam_width_deg': 3.0,
                    'seaking.vertical_beam_width_deg': 20.0, 'seaking.absorption_db_per_m': 0.09},
+}
+
+#: Flat setting overrides of the structured scenarios, by layout (applied after the scenario's own).
+STRUCTURE_PRESETS: dict[str, dict] = {
+    'tank': {'structure.kind': 'tank', 'output.coding': 'db'},
+    'harbour': {'structure.kind': 'harbour', 'structure.seabed_range_min': 1900.0,
+                'structure.seabed_range_max': 2000.0, 'structure.texture_scale': 60.0,
+                'structure.ringdown_length': 10.0, 'output.coding': 'db'},
 }
 
 #: The ESC paper's sonar position [m].
@@ -61,6 +75,7 @@ class ScenarioInfo:
     snr_db: float
     overrides: tuple[tuple[str, object], ...] = ()  # flat SimConfig overrides (sensor window etc.)
     description: str = ''
+    structured: bool = False          # STRUCTURE_PRESETS apply (by sensor)
 
 
 _SEAKING = ('seaking675', 'seaking325')
@@ -95,6 +110,15 @@ for _n, _text in _FLS_TEXT.items():
     SCENARIOS[f'fls{_n}'] = ScenarioInfo(f'fls{_n}', _SEAKING, 80.0 if _n <= 7 or _n == 12 else 60.0, 1.0, 20.0,
                                          _TANK, description=f'FLS paper Table 5, situation {_n}: {_text}')
 
+for _base in [n for n in SCENARIOS if n.startswith(('scenario', 'fls'))]:
+    _i = SCENARIOS[_base]
+    SCENARIOS[f'{_base}_structured'] = dataclasses.replace(
+        _i, name=f'{_base}_structured', structured=True,
+        description=f'{_i.description}; with walls, seabed band, ringdown and 8-bit dB output')
+SCENARIOS['structure_only'] = ScenarioInfo('structure_only', _SEAKING + ('harbour',), 60.0, 1.0, 0.0, _TANK,
+                                           'static structure, seabed band and ringdown, no target, 8-bit dB '
+                                           'output (tank on SeaKing, harbour on the harbour sonar)', True)
+
 
 def scenario_info(name: str) -> ScenarioInfo:
     """The scenario's info; ValueError lists the known names."""
@@ -110,11 +134,12 @@ def build_scene(name: str, rng: np.random.Generator, clutter_lambda: float, snr_
     info = scenario_info(name)
     if sensor not in info.sensors:
         raise ValueError(f'scenario {name} runs on {"/".join(info.sensors)}, not {sensor}')
-    builder: Callable[..., Scene] = _BUILDERS.get(name) or _fls
-    scene = builder(name, rng, snr_db)
+    base = name.removesuffix('_structured')
+    builder: Callable[..., Scene] = _BUILDERS.get(base) or _fls
+    scene = builder(base, rng, snr_db)
     scene.lam = clutter_lambda
     scene.duration = duration if duration > 0 else math.inf
-    if name == 'clutter' and sensor == 'harbour':
+    if name in ('clutter', 'structure_only') and sensor == 'harbour':
         scene.platform = StaticTrajectory(*HARBOUR_SONAR_XY)
     return scene
 
@@ -188,4 +213,5 @@ def _sea_trial(name: str, rng: np.random.Generator, snr_db: float) -> Scene:
 
 _BUILDERS: dict[str, Callable[..., Scene]] = {
     'scenario1': _scenario1, 'scenario2': _scenario2, 'clutter': _clutter, 'sea_trial': _sea_trial,
+    'structure_only': _clutter,
 }

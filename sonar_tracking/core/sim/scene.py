@@ -9,11 +9,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .motion import StaticTrajectory, Trajectory
 from .shapes import Shape, shape
+
+if TYPE_CHECKING:
+    from .structure import Structure
 
 __all__ = ['Target', 'ClutterRegion', 'Scene', 'points_in_polygon']
 
@@ -57,7 +61,8 @@ class ClutterRegion:
 
 @dataclass
 class Scene:
-    """Targets, sonar platform motion and clutter map; ``duration`` is the scenario length [s]."""
+    """Targets, sonar platform motion, clutter map and static structure (None: open water);
+    ``duration`` is the scenario length [s]."""
 
     targets: list[Target]
     platform: Trajectory = field(default_factory=lambda: StaticTrajectory(0.0, 0.0))
@@ -65,6 +70,7 @@ class Scene:
     regions: list[ClutterRegion] = field(default_factory=list)
     duration: float = math.inf
     depth: float = 1.5
+    structure: Structure | None = None
 
     def lam_at(self, xy: np.ndarray) -> np.ndarray | float:
         """Clutter rate at world points ``(..., 2)``; a scalar when the map is homogeneous."""

@@ -74,6 +74,8 @@ class SeaKingConfig(Config):
                               low=-150.0, high=40.0)
     ghost_db: float = setting(-8.0, 'surface multipath echo re the direct echo', unit='dB', low=-150.0, high=0.0)
     pulse_length: float = setting(0.1, 'range extent of a point echo', unit='m', low=0.0, high=10.0)
+    turn: str = setting('ccw', 'direction the head turns first: ccw (toward larger bearing) or cw; a 360 deg '
+                        'span keeps turning that way', choices=('ccw', 'cw'))
 
     def validate(self) -> None:
         limit = MAX_RANGE[self.frequency_khz]
@@ -139,12 +141,16 @@ class SeaKingSonar:
         self.reverb_profile = rel ** (self._tvg_exp - 3.0)
         self.noise_profile = 10 ** (c.noise_db / 10) * rel ** self._tvg_exp * \
             10 ** (2 * c.absorption_db_per_m * (self.ranges - c.reference_range) / 10)
+        self._static_cache: dict[tuple, np.ndarray] = {}
+        self._structure_targets: tuple[object, list[Target]] | None = None
         self.reset()
 
     def reset(self) -> None:
-        """Head back to the right limit, turning left, at time 0."""
-        self.position = 0
-        self.direction = 1
+        """Head back to the right limit turning left (``turn = ccw``), or to the left limit turning
+        right (``cw``), at time 0."""
+        cw = self.config.turn == 'cw'
+        self.position = self.config.n_positions - 1 if cw else 0
+        self.direction = -1 if cw else 1
         self.ping_count = 0
 
     @property
@@ -167,11 +173,16 @@ class SeaKingSonar:
         positions, direction, end = [], self.direction, False
         while len(positions) < self.sector_size:
             positions.append(self.position)
-            if c.continuous:
+            if c.continuous and direction > 0:
                 if self.position == last:
                     self.position, end = 0, True
                 else:
                     self.position += 1
+            elif c.continuous:
+                if self.position == 0:
+                    self.position, end = last, True
+                else:
+                    self.position -= 1
             else:
                 at_limit = (self.position == last and direction > 0) or (self.position == 0 and direction < 0)
                 if at_limit or last == 0:
@@ -223,6 +234,8 @@ class SeaKingSonar:
         reverb, echoes, (sx, sy, yaw, svx, svy) = self.render_mean(scene, plan)
         amps = self.amplitude.unit(rng, (c.n_bins, n)) * (reverb + echoes)
         amps += rng.standard_exponential((c.n_bins, n)) * (self.noise_profile[:, None] / scene.lam)
+        if scene.structure is not None:
+            amps += scene.structure.fluctuate(self.static_mean(scene, plan), rng)
         pp = c.ping_period
         if plan.direction < 0:  # columns in increasing bearing: column 0 was pinged last
             amps, stamp, period, angle_min = amps[:, ::-1], plan.times[-1], -pp, plan.bearings[-1]
@@ -236,6 +249,37 @@ class SeaKingSonar:
         pose_stamp = (sx + svx * (stamp - t_mid), sy + svy * (stamp - t_mid), yaw)
         return SimSector(stamp=float(stamp), amplitudes=np.ascontiguousarray(amps, dtype=np.float32),
                          geometry=geom, pose=pose_stamp, end_of_sweep=plan.end_of_sweep)
+
+    def static_mean(self, scene: Scene, plan: SectorPlan) -> np.ndarray:
+        """Mean echo of the scene's static structure and the ringdown in a planned sector (bins x pings).
+
+        Walls and piles go through the beam pattern, pulse and multipath like targets (their levels
+        are relative to the background reverberation mean ``1 / lam``, as a target's SNR); the seabed
+        band is textured at the cells' world positions. Cached by head positions and platform
+        state, so a fixed sonar computes each sector of its sweep once.
+        """
+        st = scene.structure
+        t_mid = 0.5 * (plan.times[0] + plan.times[-1])
+        key = (id(st), scene.lam, tuple(plan.positions.tolist()), scene.platform_pose(t_mid))
+        hit = self._static_cache.get(key)
+        if hit is not None:
+            return hit
+        if self._structure_targets is None or self._structure_targets[0] is not st:
+            self._structure_targets = (st, st.as_targets(math.radians(self.config.beam_width_deg),
+                                                         self.config.reference_range))
+        _, mean, (sx, sy, yaw, _, _) = self.render_mean(scene, plan, self._structure_targets[1])
+        seabed, ring = st.range_profile(self.ranges)
+        rows = np.flatnonzero(seabed)
+        if rows.size:
+            b = plan.bearings[None, :] + yaw
+            r = self.ranges[rows, None]
+            cells = np.stack([sx + r * np.cos(b), sy + r * np.sin(b)], axis=-1)
+            mean[rows] += seabed[rows, None] * st.texture(cells) / scene.lam
+        mean += ring[:, None] / scene.lam
+        if len(self._static_cache) >= 1024:  # a moving platform never repeats a key
+            self._static_cache.clear()
+        self._static_cache[key] = mean
+        return mean
 
     def _add_target(self, echoes: np.ndarray, target: Target, scene: Scene, times: np.ndarray, t_mid: float,
                     bearings: np.ndarray, sensor_xy: np.ndarray, yaw: float, lam_bg: float) -> None:

@@ -17,10 +17,11 @@ import numpy as np
 from ..config import Config, ConfigError, setting
 from .amplitude import AmplitudeConfig, AmplitudeModel
 from .harbour import HarbourConfig, HarbourSonar
-from .presets import SCENARIOS, SENSOR_PRESETS, build_scene, scenario_info
+from .presets import SCENARIOS, SENSOR_PRESETS, STRUCTURE_PRESETS, build_scene, scenario_info
 from .scene import Scene
 from .seaking import SeaKingConfig, SeaKingSonar
 from .sensor import SimSector
+from .structure import OutputConfig, StructureConfig, build_structure, encode_output
 
 __all__ = ['SimConfig', 'Simulator']
 
@@ -29,7 +30,8 @@ __all__ = ['SimConfig', 'Simulator']
 class SimConfig(Config):
     """Scenario, sensor and clutter settings of the simulator."""
 
-    scenario: str = setting('scenario2', 'scenario preset (ESC scenario1/2, FLS fls1..fls14, sea_trial, clutter)',
+    scenario: str = setting('scenario2', 'scenario preset (ESC scenario1/2, FLS fls1..fls14, sea_trial, clutter; '
+                            '*_structured and structure_only add walls, seabed, ringdown and 8-bit dB output)',
                             choices=tuple(SCENARIOS), read_only=True)
     preset: str = setting('harbour', 'sensor preset', choices=tuple(SENSOR_PRESETS), read_only=True)
     seed: int = setting(0, 'random seed: same seed, same messages', low=0, high=2**63 - 1, read_only=True)
@@ -42,11 +44,17 @@ class SimConfig(Config):
     amplitude: AmplitudeConfig = dataclasses.field(default_factory=AmplitudeConfig)
     harbour: HarbourConfig = dataclasses.field(default_factory=HarbourConfig)
     seaking: SeaKingConfig = dataclasses.field(default_factory=SeaKingConfig)
+    structure: StructureConfig = dataclasses.field(default_factory=StructureConfig)
+    output: OutputConfig = dataclasses.field(default_factory=OutputConfig)
 
     def validate(self) -> None:
         info = scenario_info(self.scenario)
         if self.preset not in info.sensors:
             raise ConfigError(f'scenario {self.scenario} runs on {"/".join(info.sensors)}, not preset {self.preset}')
+        kind = self.structure.kind
+        if kind != 'none' and (kind == 'harbour') != self.is_harbour:
+            raise ConfigError(f'structure.kind = {kind} is laid out for the '
+                              f'{"harbour" if kind == "harbour" else "SeaKing (tank)"} sensor, not preset {self.preset}')
 
     @classmethod
     def for_scenario(cls, scenario: str, preset: str = '', **flat) -> 'SimConfig':
@@ -62,6 +70,8 @@ class SimConfig(Config):
                   'clutter_lambda': info.clutter_lambda, 'snr_db': info.snr_db}
         values.update(SENSOR_PRESETS[preset])
         values.update(dict(info.overrides))
+        if info.structured:
+            values.update(STRUCTURE_PRESETS['harbour' if preset == 'harbour' else 'tank'])
         values.update(flat)
         return cls.from_flat(values)
 
@@ -78,6 +88,8 @@ class Simulator:
         scene_rng, self.noise_rng = rng.spawn(2)
         self.scene: Scene = build_scene(config.scenario, scene_rng, config.clutter_lambda, config.snr_db,
                                         config.duration, config.preset)
+        # Drawn after the targets, so a structured scene has the same targets as its plain one.
+        self.scene.structure = build_structure(config.structure, scene_rng)
         amplitude = AmplitudeModel(config.amplitude)
         if config.is_harbour:
             self.sensor: HarbourSonar | SeaKingSonar = HarbourSonar(config.harbour, amplitude)
@@ -90,10 +102,16 @@ class Simulator:
         return self.sensor.next_time > self.scene.duration + 1e-9
 
     def next_sector(self) -> SimSector | None:
-        """The next sector, or None after the scenario's duration."""
+        """The next sector, or None after the scenario's duration.
+
+        Its values are float32 linear amplitudes, or uint8 dB counts with ``output.coding = db``.
+        """
         if self.finished:
             return None
-        return self.sensor.next_sector(self.scene, self.noise_rng)
+        sector = self.sensor.next_sector(self.scene, self.noise_rng)
+        if self.config.output.coding == 'linear_amplitude':
+            return sector
+        return dataclasses.replace(sector, amplitudes=encode_output(sector.amplitudes, self.config.output))
 
     def truth(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Target ids and world states ``[x, y, vx, vy]`` at ``t``."""
@@ -117,12 +135,17 @@ class Simulator:
 
 
 def describe(config: SimConfig) -> str:
-    """One line for logs: scenario, sensor, sizes and timing."""
+    """One line for logs: scenario, sensor, sizes and timing (and structure and output coding when set)."""
+    extra = ''
+    if config.structure.kind != 'none':
+        extra += f'; {config.structure.kind} structure'
+    if config.output.coding == 'db':
+        extra += f'; 8-bit dB output ({config.output.db_span:g} dB span, gain floor {config.output.gain_floor:g})'
     if config.is_harbour:
         g = config.harbour.geometry()
         return (f'{config.scenario} on the harbour sonar: {g.n_bins} x {g.n_beams} cells of '
                 f'{config.harbour.cell_depth:.2f} m x {math.degrees(config.harbour.cell_width):.3f} deg, '
-                f'one scan every {config.harbour.scan_period:g} s')
+                f'one scan every {config.harbour.scan_period:g} s{extra}')
     s = config.seaking
     return (f'{config.scenario} on SeaKing {s.frequency_khz:g} kHz: {s.n_bins} bins to {s.range_max:g} m, '
-            f'step {s.step_deg:g} deg, ping every {s.ping_period * 1e3:.1f} ms, sweep {s.sweep_time:.2f} s')
+            f'step {s.step_deg:g} deg, ping every {s.ping_period * 1e3:.1f} ms, sweep {s.sweep_time:.2f} s{extra}')

@@ -38,7 +38,12 @@ class StageDiagnostics:
         """Count a dropped message and log why: each kind of problem at once, then at most once a
         second (a sensor sending bad data all the time must not flood the log, nor hide a new fault)."""
         self.drop(reason)
-        self.log(logger, reason + ':' + re.sub(r'[-+0-9.e]+', '#', text), text, level)
+        self.log(logger, reason + ':' + self.kind(text), text, level)
+
+    @staticmethod
+    def kind(text: str) -> str:
+        """The kind of a message: its text with the numbers taken out (stamps, counts)."""
+        return re.sub(r'[-+0-9.e]+', '#', text)
 
     def log(self, logger, key: str, text: str, level: str = 'error') -> None:
         """Log ``text`` at ``level`` unless the same ``key`` was logged in the last second (unlike

@@ -6,23 +6,24 @@ describe`` tells users what a value means. Start-up overrides that break a rule 
 the log and replaced by the default; runtime changes (``ros2 param set``) are refused with the
 rule as the reason, and accepted changes reach the node through ``on_change``.
 
-Settings marked ``read_only`` can only be given at start-up. They are enforced here rather than
-by the descriptor's ``read_only`` flag so that a bad start-up value can still be put back to its
-default.
+Every parameter keeps its declared type: an integer given for a double (``ros2 param set ... 5``,
+YAML ``1``) or an integer array for a double array is converted, anything else of another type is
+refused. Start-up-only settings are ``read_only`` in their descriptors; their start-up values are
+checked before they are declared, so a bad one is replaced by the default without a later set.
 """
 from __future__ import annotations
 
+import array
 import sys
 from typing import Any, Callable
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
-from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from sonar_tracking.core.config import Config, ConfigError, Setting
 
-__all__ = ['ConfigParameters', 'descriptor_for']
+__all__ = ['ConfigParameters', 'descriptor_for', 'start_value']
 
 _TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
           float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
@@ -34,21 +35,43 @@ def descriptor_for(s: Setting, read_only: bool | None = None) -> ParameterDescri
     read_only = s.read_only if read_only is None else read_only
     text = s.description + (f' [{s.unit}]' if s.unit else '')
     bounds = s.bounds_text()
-    d = ParameterDescriptor(name=s.name, description=text,
+    d = ParameterDescriptor(name=s.name, description=text, read_only=read_only,
                             additional_constraints=(bounds + ('; ' if bounds else '') +
                                                     ('start-up only' if read_only else '')).strip('; '),
                             type=_TYPES.get(s.type, ParameterType.PARAMETER_DOUBLE_ARRAY))
-    if s.type is float:
-        # Integer values are accepted for doubles (YAML "1" for 1.0) and converted by the config.
-        d.dynamic_typing = True
-        if s.low is not None or s.high is not None:
-            d.floating_point_range = [FloatingPointRange(
-                from_value=-sys.float_info.max if s.low is None else float(s.low),
-                to_value=sys.float_info.max if s.high is None else float(s.high), step=0.0)]
+    if s.type is float and (s.low is not None or s.high is not None):
+        d.floating_point_range = [FloatingPointRange(
+            from_value=-sys.float_info.max if s.low is None else float(s.low),
+            to_value=sys.float_info.max if s.high is None else float(s.high), step=0.0)]
     elif s.type is int and (s.low is not None or s.high is not None):
         d.integer_range = [IntegerRange(from_value=-_INT_MAX if s.low is None else int(s.low),
                                         to_value=_INT_MAX if s.high is None else int(s.high), step=0)]
     return d
+
+
+def _to_declared_type(s: Setting, value: Any) -> Any:
+    """``value`` with integers made doubles where ``s`` is a double or double array; else unchanged."""
+    if s.type is float and isinstance(value, int) and not isinstance(value, bool):
+        return float(value)
+    if s.type not in _TYPES and isinstance(value, (list, tuple, array.array)) and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+        return [float(v) for v in value]
+    return value
+
+
+def start_value(node: Node, s: Setting, default: Any) -> Any:
+    """The start-up value of setting ``s``: its override (``-p``, a parameter file) if valid, else
+    ``default``, with the reason in the log."""
+    overrides = getattr(node, '_parameter_overrides', {})  # rclpy has no public accessor for these
+    if s.name not in overrides:
+        return default
+    given = _to_declared_type(s, overrides[s.name].value)
+    try:
+        s.check(given)
+    except ConfigError as exc:
+        node.get_logger().error(f'parameter {exc}; using {default!r}')
+        return default
+    return _ros_value(given)
 
 
 class ConfigParameters:
@@ -68,47 +91,36 @@ class ConfigParameters:
         self.settings = {s.name: s for s in type(base).settings()}
         self.read_only = {n for n, s in self.settings.items() if (n not in mutable if mutable is not None
                                                                    else s.read_only)}
-        defaults = base.flat()
-        log = node.get_logger()
-        values: dict[str, Any] = {}
-        for name, s in self.settings.items():
-            default = _ros_value(defaults[name])
-            if name in skip:
-                values[name] = node.get_parameter(name).value
-                continue
-            try:
-                param = node.declare_parameter(name, default, descriptor_for(s, name in self.read_only))
-            except (InvalidParameterValueException, InvalidParameterTypeException) as exc:
-                log.error(f'parameter {name}: start-up value refused ({exc}); using {default!r}')
-                param = node.declare_parameter(name, default, descriptor_for(s, name in self.read_only),
-                                               ignore_override=True)
-            value = param.value
-            try:
-                s.check(value)
-            except ConfigError as exc:
-                log.error(f'parameter {name}: {exc}; using {default!r}')
-                node.set_parameters([Parameter(name, value=default)])
-                value = default
-            values[name] = value
+        defaults = {n: _ros_value(v) for n, v in base.flat().items()}
+        values = {n: (node.get_parameter(n).value if n in skip else start_value(node, s, defaults[n]))
+                  for n, s in self.settings.items()}
         try:
             self.config = type(base).from_flat(values, base=base)
             if check is not None:
                 check(self.config)
         except ConfigError as exc:
-            log.error(f'parameters are inconsistent ({exc}); using the defaults')
-            node.set_parameters([Parameter(n, value=_ros_value(v)) for n, v in defaults.items() if n not in skip])
+            node.get_logger().error(f'parameters are inconsistent ({exc}); using the defaults')
+            values = {n: (values[n] if n in skip else defaults[n]) for n in self.settings}
             self.config = base
+        for name, s in self.settings.items():
+            if name not in skip:
+                node.declare_parameter(name, values[name], descriptor_for(s, name in self.read_only),
+                                       ignore_override=True)
+        node.add_pre_set_parameters_callback(self._pre_set)
         node.add_on_set_parameters_callback(self._on_set)
+
+    def _pre_set(self, params: list[Parameter]) -> list[Parameter]:
+        out = []
+        for p in params:
+            s = self.settings.get(p.name)
+            value = _to_declared_type(s, p.value) if s is not None else p.value
+            out.append(p if value is p.value else Parameter(p.name, value=value))
+        return out
 
     def _on_set(self, params: list[Parameter]) -> SetParametersResult:
         changes = {p.name: p.value for p in params if p.name in self.settings}
         if not changes:
             return SetParametersResult(successful=True)
-        current = self.config.flat()
-        for name, value in changes.items():
-            if name in self.read_only and value != _ros_value(current[name]):
-                return SetParametersResult(successful=False, reason=(
-                    f'{name} can only be set at start-up: restart the node with -p {name}:={value}'))
         try:
             new = type(self.config).from_flat(changes, base=self.config)
             if self.check is not None:

@@ -1,0 +1,26 @@
+"""The fls/image + fls/image_info message rules (msg_adapters.map_info)."""
+import numpy as np
+import pytest
+
+import msg_adapters as ma
+from msg_adapters.map_info import fls_image, grid_to_map_info, map_info_to_grid
+from sonar_tracking.core.fls.grid import ImageGrid
+
+
+def test_round_off_negatives_are_clipped_and_real_negatives_refused():
+    img = np.ones((4, 5), np.float32)
+    img[1, 1] = -1.5e-15
+    out = fls_image(ma.array_to_image(img, '32FC1'), (4, 5))
+    assert out[1, 1] == 0.0 and out.dtype == np.float32
+    img[2, 2] = -0.5
+    with pytest.raises(ma.AdapterError, match='1 negative pixels'):
+        fls_image(ma.array_to_image(img, '32FC1'), (4, 5))
+
+
+@pytest.mark.parametrize('grid, match', [
+    (ImageGrid(resolution=1e-9, width=400, height=400, origin_x=0.0, origin_y=0.0), 'resolution'),
+    (ImageGrid(resolution=0.1, width=8000, height=8000, origin_x=0.0, origin_y=0.0), 'more than'),
+])
+def test_image_info_beyond_physical_bounds_is_refused(grid, match):
+    with pytest.raises(ma.AdapterError, match=match):
+        map_info_to_grid(grid_to_map_info(grid, 0))
