@@ -182,7 +182,7 @@ def viewer_connected(port: int) -> bool:
 
 
 def _show_live(scene, rec, url: str | None, ros_args: list[str], qos: str, gate: int | None) -> int:
-    from sonar_tracking.nodes._runtime import run_node
+    from sonar_tracking.ros.runtime import run_node
 
     def factory():
         from rclpy.node import Node

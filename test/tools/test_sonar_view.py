@@ -72,7 +72,7 @@ def scan_messages(types, k: int) -> list[tuple[str, object]]:
     gpf = np.zeros(1, ma.GPF_TRACK_DTYPE)
     gpf['track_id'], gpf['confirmed'], gpf['x'], gpf['y'], gpf['cov_xx'], gpf['cov_yy'] = 2, 1, 96.0, 104.0, 1.0, 1.0
     from sonar_tracking.core.fls.grid import ImageGrid
-    from sonar_tracking.nodes._image_info import grid_to_map_info
+    from msg_adapters.map_info import grid_to_map_info
     fls = np.full((20, 30), 0.1, np.float32)
     fls[2, 25] = 50.0  # pixel centre (25.5, 2.5) m from the grid origin (80, 90): world (105.5, 92.5)
     grid = ImageGrid(resolution=1.0, width=30, height=20, origin_x=80.0, origin_y=90.0)

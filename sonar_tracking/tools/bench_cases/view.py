@@ -12,7 +12,6 @@ cost to the pipeline's throughput. Registered only where the view extra (Rerun) 
 from __future__ import annotations
 
 import importlib.util
-import os
 import shutil
 import socket
 import subprocess
@@ -49,6 +48,7 @@ def _stack(view: str | None):
 
 def _seconds_per_scan(view: str | None) -> float:
     from sonar_tracking.resources import config_path
+    from sonar_tracking.ros.runtime import private_domain
 
     from ..bags import read_bag
     tmp = Path(tempfile.mkdtemp(prefix='bench_view_'))
@@ -57,9 +57,8 @@ def _seconds_per_scan(view: str | None) -> float:
                str(config_path('stack_harbour.yaml')), '--record', str(tmp / 'bag')]
         if view is not None:
             cmd += ['--view', f'--grpc-port {_port()} --web-port {_port()} {view}']
-        # A DDS domain of its own: another pipeline on the machine would add its /tracks.
-        env = dict(os.environ, ROS_DOMAIN_ID=str(1 + os.getpid() % 100))
-        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300, env=env)
+        private_domain()  # another pipeline on the machine would add its /tracks
+        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
         if r.returncode != 0:
             raise RuntimeError(f'the stack failed (status {r.returncode}):\n{r.stdout[-2000:]}')
         stamps = np.array([m.timestamp for m in read_bag(tmp / 'bag', ['/tracks'])], dtype=np.int64)

@@ -31,9 +31,9 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 import msg_adapters as ma
+from msg_adapters.map_info import fls_image, map_info_to_grid
 from sonar_tracking.core.fan import PolarCanvas, fan_extent, to_mono8
 from sonar_tracking.core.intensity import CODINGS, decode
-from sonar_tracking.nodes._image_info import ImageInfoPairer, map_info_to_grid
 
 __all__ = ['TOPICS', 'IMAGE_TOPICS', 'SceneLogger', 'blueprint']
 
@@ -119,7 +119,7 @@ class SceneLogger:
         self._pending: deque = deque()
         self._canvas: PolarCanvas | None = None
         self._fan_logged_ns: int | None = None
-        self._fls = ImageInfoPairer(max_pending=4)
+        self._fls = ma.StampPairer(('image', 'info'), max_pending=4)
         self._tails: dict[str, dict[int, deque]] = {}
         self._handlers = {
             'sonar/sector': lambda m: self._sector(self._sectors.add_image(m)),
@@ -131,8 +131,8 @@ class SceneLogger:
             'detector/clutter_density': lambda m: self._scalar('plots/clutter_density', m),
             'tracks': lambda m: self._tracks('tracks', 'map/tracks', 'imm_ipda', m),
             'gpf/tracks': lambda m: self._tracks('gpf/tracks', 'map/gpf', 'gpf', m),
-            'fls/image': lambda m: self._fls_image(self._fls.add_image(m)),
-            'fls/image_info': lambda m: self._fls_image(self._fls.add_info(m)),
+            'fls/image': lambda m: self._fls_image(self._fls.add('image', ma.header_ns(m), m)),
+            'fls/image_info': lambda m: self._fls_image(self._fls.add('info', ma.stamp_to_ns(m.map_load_time), m)),
             'fls/regions': self._regions,
         }
         self._log_styles()
@@ -232,14 +232,13 @@ class SceneLogger:
         picture = np.ascontiguousarray(to_mono8(self._canvas.image, self.dynamic_range_db)[::-1, :].T)
         self.rec.log('map/fan', rr.Image(picture, color_model='L', draw_order=-20.0).compress(jpeg_quality=90))
 
-    def _fls_image(self, pair: tuple[Any, Any] | None) -> None:
-        if pair is None:
+    def _fls_image(self, frame: dict | None) -> None:
+        self._fls.pop_dropped()
+        if frame is None:
             return
-        image, info = pair
+        image, info = frame['image'], frame['info']
         grid = map_info_to_grid(info)
-        values = ma.image_to_array(image)
-        if values.shape != grid.shape:
-            raise ma.AdapterError(f'fls/image is {values.shape} but its image_info says {grid.shape}')
+        values = fls_image(image, grid.shape)
         stamp_ns = ma.header_ns(image)
         self._at(stamp_ns)
         c, s, h = math.cos(grid.origin_yaw), math.sin(grid.origin_yaw), grid.height * grid.resolution
@@ -247,7 +246,7 @@ class SceneLogger:
         self.rec.log('map/fls_image', rr.Transform3D(
             translation=[grid.origin_x - s * h, -grid.origin_y - c * h, 0.0],
             rotation=rr.RotationAxisAngle(axis=[0.0, 0.0, 1.0], radians=-grid.origin_yaw), scale=grid.resolution))
-        picture = np.ascontiguousarray(to_mono8(np.asarray(values, dtype=np.float32), self.dynamic_range_db)[::-1])
+        picture = np.ascontiguousarray(to_mono8(values, self.dynamic_range_db)[::-1])
         self.rec.log('map/fls_image', rr.Image(picture, color_model='L', draw_order=-10.0).compress(jpeg_quality=90))
 
     # -- records ---------------------------------------------------------------------------------
