@@ -15,6 +15,7 @@ CONSOLE_SCRIPTS = [
     'gpf_tracker = sonar_tracking.nodes.gpf_tracker:main',
     'sonar_eval = sonar_tracking.tools.sonar_eval:main',
     'sonar_stack = sonar_tracking.tools.sonar_stack:main',
+    'sonar_echo = sonar_tracking.tools.sonar_echo:main',
     'bag_record = sonar_tracking.tools.bag_record:main',
     'bag_replay = sonar_tracking.tools.bag_replay:main',
     'sonar_view = sonar_tracking.tools.sonar_view:main',

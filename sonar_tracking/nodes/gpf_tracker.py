@@ -38,28 +38,25 @@ from dataclasses import dataclass
 import numpy as np
 from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, PointCloud2
-from visualization_msgs.msg import MarkerArray
 
 import msg_adapters as ma
 from msg_adapters.map_info import fls_image, map_info_to_grid
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
-from sonar_tracking.ros import (InputConfig, PoseConfig, PoseSource, SonarNode, output_profile,
+from sonar_tracking.ros import (InputConfig, PoseConfig, PoseSource, SonarNode, TrackOutput, TrackOutputConfig,
                                  run_node)
 
 __all__ = ['GpfNodeConfig', 'GpfTrackerNode', 'main']
 
 @dataclass(frozen=True)
-class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig):
+class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig, TrackOutputConfig):
     """Tracker settings, the FLS feature settings, input QoS, time rule, pose, and what the node publishes."""
 
     features: FeatureConfig = dataclasses.field(default_factory=FeatureConfig)
     world_frame: str = setting('world', 'frame of gpf/tracks when fls/image has no frame_id', read_only=True)
     seed: int = setting(0, 'seed of the particles\' random numbers: same input and seed, same tracks', low=0,
                         high=2**63 - 1, read_only=True)
-    publish_tentative: bool = setting(False, 'publish tentative tracks on gpf/tracks too (field confirmed = 0)')
-    markers_tentative: bool = setting(False, 'draw tentative tracks in gpf/tracks/markers as well')
     marker_scale: float = setting(0.5, 'diameter of a track sphere in gpf/tracks/markers', unit='m', low=0.0,
                                   high=1e5, low_open=True)
     max_pending: int = setting(32, 'frames kept while waiting for their image, info and regions (a burst of '
@@ -87,8 +84,7 @@ class GpfTrackerNode(SonarNode):
         self.subscribe(PointCloud2, 'fls/regions', lambda m: self._on_part('regions', m), inputs)
         self.pose = PoseSource(self, lambda: self.config, self.input_qos(50),
                                lambda text: self.say('error', text, 'bad_odometry'))
-        self.pub_tracks = self.create_publisher(PointCloud2, 'gpf/tracks', output_profile(10))
-        self.pub_markers = self.create_publisher(MarkerArray, 'gpf/tracks/markers', output_profile(10))
+        self.out = TrackOutput(self, 'gpf/tracks', 'gpf')
         c = self.config
         self.get_logger().info(
             f'GPF with K = {c.particles} particles, cues {list(c.cues.numbers)} in {c.cues.window:g} m windows, '
@@ -150,12 +146,7 @@ class GpfTrackerNode(SonarNode):
             self.say('warning', f'{where}: {rep.bad_regions} regions without a finite position ignored')
         self.time.accept(stamp)
         self.processed += 1
-        c = self.config
-        out = tracks if c.publish_tentative else tracks[tracks['confirmed'] != 0]
-        self.pub_tracks.publish(ma.array_to_cloud(out, stamp_ns=stamp, frame_id=frame_id))
-        shown = tracks if c.markers_tentative else tracks[tracks['confirmed'] != 0]
-        self.pub_markers.publish(ma.track_markers(shown, stamp_ns=stamp, frame_id=frame_id, ns='gpf',
-                                                  scale=c.marker_scale))
+        self.out.publish(tracks, stamp, frame_id, self.config)
         self.diag.done(started)
         self.diag.values = {
             'frames': str(self.processed), 'regions': str(rep.regions), 'tracks': str(rep.tracks),

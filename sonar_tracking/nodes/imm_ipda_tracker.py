@@ -30,23 +30,20 @@ from dataclasses import dataclass
 import numpy as np
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2
-from visualization_msgs.msg import MarkerArray
 
 import msg_adapters as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
 from sonar_tracking.core.tracking.detections import detections_to_measurements
-from sonar_tracking.ros import InputConfig, SonarNode, output_profile, run_node
+from sonar_tracking.ros import InputConfig, SonarNode, TrackOutput, TrackOutputConfig, run_node
 
 __all__ = ['TrackerNodeConfig', 'ImmIpdaTrackerNode', 'main']
 
 @dataclass(frozen=True)
-class TrackerNodeConfig(TrackerConfig, InputConfig):
+class TrackerNodeConfig(TrackerConfig, InputConfig, TrackOutputConfig):
     """Tracker settings, input QoS and time rule, and what the node publishes."""
 
     world_frame: str = setting('world', 'frame of detections and tracks', read_only=True)
-    publish_tentative: bool = setting(False, 'publish tentative tracks on tracks too (field confirmed = 0)')
-    markers_tentative: bool = setting(False, 'draw tentative tracks in tracks/markers as well')
     marker_scale: float = setting(10.0, 'diameter of a track sphere in tracks/markers', unit='m',
                                   low=0.0, high=1e5, low_open=True)
 
@@ -64,8 +61,7 @@ class ImmIpdaTrackerNode(SonarNode):
         self._warned: set[str] = set()
         self.subscribe(PointCloud2, 'detections', self._process, self.input_qos(100))
         self.subscribe(Odometry, 'platform/odometry', self._on_odometry, self.input_qos(100))
-        self.pub_tracks = self.create_publisher(PointCloud2, 'tracks', output_profile())
-        self.pub_markers = self.create_publisher(MarkerArray, 'tracks/markers', output_profile(10))
+        self.out = TrackOutput(self, 'tracks', 'tracks')
         modes = ', '.join(m.name for m in self.tracker.modes)
         self.get_logger().info(f'IMM-IPDA with modes {modes}; P_D {self.config.detection.probability:g}, '
                                f'P_G {self.config.detection.gate_probability:g}, clutter density from '
@@ -120,18 +116,9 @@ class ImmIpdaTrackerNode(SonarNode):
             more = f' (and {len(rep.rejected) - 3} more)' if len(rep.rejected) > 3 else ''
             self.say('warning', f'detections at {stamp / 1e9:.6f} s: dropped {len(rep.rejected)} of '
                      f'{rep.n_measurements} detections: {shown}{more}')
-        self._publish(tracks, stamp)
+        self.out.publish(tracks, stamp, self.config.world_frame, self.config)
         self.diag.done(started)
         self.diag.values = self._values(len(z))
-
-    def _publish(self, tracks: np.ndarray, stamp: int) -> None:
-        c = self.config
-        confirmed = tracks[tracks['confirmed'] != 0]
-        out = tracks if c.publish_tentative else confirmed
-        self.pub_tracks.publish(ma.array_to_cloud(out, stamp_ns=stamp, frame_id=c.world_frame))
-        shown = tracks if c.markers_tentative else confirmed
-        self.pub_markers.publish(ma.track_markers(shown, stamp_ns=stamp, frame_id=c.world_frame,
-                                                  scale=c.marker_scale))
 
     def _values(self, n_detections: int) -> dict[str, str]:
         rep = self.tracker.report

@@ -15,10 +15,12 @@ from .qos import CLOCK_TOPIC, INPUT_QOS, input_profile, latest_profile, output_p
 from .runtime import configure_dds, prepare_process, run_node
 from .sector_input import SectorInput, SectorInputConfig
 from .timeline import LATE, NEW, RESET, TimeGuard
+from .track_output import TrackOutput, TrackOutputConfig
 
 __all__ = [
     'StageDiagnostics', 'InputConfig', 'SonarNode', 'ConfigParameters', 'descriptor_for', 'start_value',
     'Pose', 'PoseConfig', 'PoseSource', 'check_sonar_pose', 'CLOCK_TOPIC', 'INPUT_QOS', 'input_profile',
     'latest_profile', 'output_profile', 'configure_dds', 'prepare_process', 'run_node', 'SectorInput',
     'SectorInputConfig', 'LATE', 'NEW', 'RESET', 'TimeGuard', 'SubscriberGate',
+    'TrackOutput', 'TrackOutputConfig',
 ]

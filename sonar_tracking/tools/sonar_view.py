@@ -131,7 +131,7 @@ def _show_bag(args: argparse.Namespace, scene, rec, url: str | None) -> int:
     from rosbags.typesys import Stores, get_typestore
 
     from .bags import bag_topics, read_bag
-    from .view.scene import TOPICS
+    from .view import TOPICS
     ns = '/' + args.ns.strip('/') + '/' if args.ns.strip('/') else '/'
     names = {ns + rel: rel for rel in TOPICS}
     topics = {t.name: t.msgtype for t in bag_topics(args.bag) if t.name in names}
@@ -191,7 +191,7 @@ def _show_live(scene, rec, url: str | None, ros_args: list[str], qos: str, gate:
 
         from msg_adapters import rclpy_types
 
-        from .view.scene import IMAGE_TOPICS, TOPICS
+        from .view import IMAGE_TOPICS, TOPICS
 
         class ViewNode(Node):
             def __init__(self) -> None:

@@ -27,6 +27,27 @@ def subscribe(ros, got: dict):
     return [ros.node.create_subscription(typ, t, got[t].append, KEEP_ALL) for t, typ in topics.items()]
 
 
+def wait_processed(ros, sim, name: str = 'fls_features', timeout: float = 60.0) -> None:
+    """Wait until the simulator has finished and ``name`` has processed every sector it published
+    (the simulator's log gives the count, the node's /diagnostics its own)."""
+    import re
+
+    from diagnostic_msgs.msg import DiagnosticArray
+    ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
+    sent = int(re.search(r'finished after (\d+) sectors', sim.stderr.read()).group(1))
+    processed = [0]
+
+    def on_diag(msg):
+        for st in msg.status:
+            if st.name.startswith(name):
+                processed[0] = max(processed[0], int(dict((kv.key, kv.value) for kv in st.values)['processed']))
+    sub = ros.node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
+    try:
+        ros.wait(lambda: processed[0] >= sent, timeout, f'{name} to process all {sent} sectors')
+    finally:
+        ros.node.destroy_subscription(sub)
+
+
 def complete_frames(ros, got: dict, at_least: int = 3, timeout: float = 10.0) -> dict:
     """A snapshot of ``got`` once image, image_info and regions hold the same frames (at least
     ``at_least``), so no frame is half in."""
@@ -73,7 +94,7 @@ def test_images_grid_and_regions_from_the_simulator(ros, launch):
     wait_for_node(ros)
     sim = launch('seaking_sim', 'scenario:=fls14', 'seed:=2', 'duration:=15.2', 'rate:=0.0', 'snr_db:=25.0',
                  'wait_for_subscribers:=1', 'shutdown_when_done:=true')
-    ros.wait(lambda: sim.poll() is not None, 60.0, 'the simulator to finish')
+    wait_processed(ros, sim)
     frames = frames_of(complete_frames(ros, got))
     for s in subs:
         ros.node.destroy_subscription(s)
@@ -103,7 +124,7 @@ def test_moving_platform_regions_in_the_world_frame(ros, launch):
     wait_for_node(ros)
     sim = launch('seaking_sim', 'scenario:=sea_trial', 'seed:=1', 'duration:=41.0', 'rate:=0.0', 'snr_db:=30.0',
                  'wait_for_subscribers:=1', 'shutdown_when_done:=true')
-    ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
+    wait_processed(ros, sim)
     frames = frames_of(complete_frames(ros, got))
     for s in subs:
         ros.node.destroy_subscription(s)

@@ -87,8 +87,11 @@ class Harness:
         self.said: list[str] = []
         say = node.say
         node.say = lambda severity, text, reason=None: (self.said.append(text), say(severity, text, reason))
-        for name in outputs:
-            getattr(node, name).publish = lambda m, name=name: self.out.append((name, m))
+        for name in outputs:   # 'pub_det' on the node, 'out.pub_tracks' on its track output
+            owner = node
+            for part in name.split('.')[:-1]:
+                owner = getattr(owner, part)
+            getattr(owner, name.split('.')[-1]).publish = lambda m, name=name: self.out.append((name, m))
 
     def feed(self, topic: str, msg) -> None:
         self.subs[topic].callback(msg)
@@ -190,7 +193,7 @@ def _bad_datatype(t):
 
 @pytest.mark.parametrize('case', sorted(BAD_DETECTIONS))
 def test_imm_ipda_tracker_drops_bad_detections_and_keeps_its_tracks(inproc, case):
-    args = ('sonar_tracking.nodes.imm_ipda_tracker', 'ImmIpdaTrackerNode', ['pub_tracks'])
+    args = ('sonar_tracking.nodes.imm_ipda_tracker', 'ImmIpdaTrackerNode', ['out.pub_tracks'])
     node, ref = make(inproc, *args, publish_tentative=True), make(inproc, *args, publish_tentative=True)
     for h in (node, ref):
         for t in (1.0, 2.0):
@@ -206,7 +209,7 @@ def test_imm_ipda_tracker_drops_bad_detections_and_keeps_its_tracks(inproc, case
 
 
 def test_bad_rows_go_one_by_one_and_the_rest_is_tracked(inproc):
-    args = ('sonar_tracking.nodes.imm_ipda_tracker', 'ImmIpdaTrackerNode', ['pub_tracks'])
+    args = ('sonar_tracking.nodes.imm_ipda_tracker', 'ImmIpdaTrackerNode', ['out.pub_tracks'])
     h = make(inproc, *args, publish_tentative=True)
     rows = detections(1.0, n=6)
     rows['x'][1] = np.nan
@@ -290,7 +293,7 @@ BAD_FRAMES = {
 
 @pytest.mark.parametrize('case', sorted(BAD_FRAMES))
 def test_gpf_tracker_drops_bad_frames_and_keeps_its_tracks(inproc, case):
-    args = ('sonar_tracking.nodes.gpf_tracker', 'GpfTrackerNode', ['pub_tracks'])
+    args = ('sonar_tracking.nodes.gpf_tracker', 'GpfTrackerNode', ['out.pub_tracks'])
     node, ref = make(inproc, *args, publish_tentative=True), make(inproc, *args, publish_tentative=True)
 
     def send(h, f):
@@ -313,7 +316,7 @@ def test_gpf_tracker_drops_bad_frames_and_keeps_its_tracks(inproc, case):
 
 
 def test_round_off_negatives_are_no_fault(inproc):
-    h = make(inproc, 'sonar_tracking.nodes.gpf_tracker', 'GpfTrackerNode', ['pub_tracks'])
+    h = make(inproc, 'sonar_tracking.nodes.gpf_tracker', 'GpfTrackerNode', ['out.pub_tracks'])
     f = _bad_frame(1.0, 'image', _pixels(-1.5e-15))
     for part, topic in (('info', '/fls/image_info'), ('image', '/fls/image'), ('regions', '/fls/regions')):
         h.feed(topic, f[part])
@@ -345,7 +348,7 @@ def test_a_jump_back_restarts_the_node_as_new_and_ids_are_never_reused(inproc, n
     kind = 'imm' if name == 'imm_ipda_tracker' else 'gpf'
     module = 'sonar_tracking.nodes.' + name
     cls = 'ImmIpdaTrackerNode' if kind == 'imm' else 'GpfTrackerNode'
-    node, fresh = (make(inproc, module, cls, ['pub_tracks'], publish_tentative=True) for _ in range(2))
+    node, fresh = (make(inproc, module, cls, ['out.pub_tracks'], publish_tentative=True) for _ in range(2))
     for t in (11.0, 12.0, 13.0):
         _feed_tracker(node, t, kind)
     old_ids = set(ma.cloud_to_array(node.out[-1][1])['track_id'].tolist())

@@ -2,19 +2,39 @@
 
 For each sector (one scan of the harbour sonar):
 
-1. every cell above the threshold ``tau`` becomes a detection (:mod:`.cells`), at its cell centre;
-2. range and bearing are converted to the world frame with ``R = J W J^T`` (eqs. 8-10) or the
+0. the sector's values become linear echo amplitude (``intensity``: decoding of 8-bit dB counts,
+   power or display values, noise floor, near-range blanking, maximum range), by
+   :func:`sonar_tracking.core.intensity.condition`; the default takes the simulator's linear
+   amplitude as it is;
+1. every cell above the threshold ``tau`` becomes a detection at its cell centre, or (``cells.grouping
+   = connected``, and within ``cells.merge_bins`` x ``merge_beams``) every group of cells one
+   detection at its amplitude-weighted centroid (:mod:`.cells`);
+2. echoes of static structure are dropped (``structure``, :mod:`sonar_tracking.core.structure`):
+   connected echoes that are too long, too wide, too large or elongated, and those lying on cells
+   that echo persistently (a background learnt online from every scan's above-threshold cells);
+3. at most ``cells.max_detections`` remain, the strongest (peak amplitude); how many were cut is in
+   the :class:`ScanResult`;
+4. range and bearing are converted to the world frame with ``R = J W J^T`` (eqs. 8-10) or the
    unbiased conversion of ref. [23] (:mod:`.conversion`). ``W`` uses ``sigma_r`` and
    ``sigma_theta``; left at 0 they are the standard deviation of a position uniform in one
-   resolution cell, ``cell / (2 sqrt 3)``, which is the harbour sonar's measurement noise;
-3. each detection gets its clutter density by SCMDE (:mod:`.scmde`) over the sector window;
-4. the ESC (:mod:`.esc`) takes the scan's density -- the mean SCMDE density over the whole
+   resolution cell, ``cell / (2 sqrt 3)``, which is the harbour sonar's measurement noise. A
+   detection spanning ``L_r`` bins and ``L_b`` beams is uniform over that extent instead:
+   ``sigma_r^2 + (L_r^2 - 1) dr^2 / 12`` (and likewise in bearing), which is ``(L_r dr)^2 / 12``
+   with the default ``sigma_r``; a single cell keeps ``sigma_r`` exactly;
+5. each detection gets its clutter density by SCMDE (:mod:`.scmde`) over the sector window. When
+   ``max_detections`` cut some, the strongest detections are not a Poisson sample of the scan, so
+   every detection gets the count estimate instead: all detections found / window area (the SCMDE
+   module's own fallback, unbiased for Poisson counts);
+6. the ESC (:mod:`.esc`) takes the scan's density -- the mean SCMDE density over the whole
    sector, or (``esc.density_source = best_track``, Scenario 2) the density around the confirmed
    track with the highest existence probability -- and sets the threshold of the next scan.
    Around the track, the density is the number of detections within ``esc.local_radius`` divided
    by the area of that disc inside the sector: an average of the detections' own SCMDE values
    would be dominated by a denser neighbouring region (it has more detections, each with a high
    density) and keep the threshold high in the sparse region the track is in.
+
+Structure is not clutter in the ESC sense (it is there every scan, and the tracker never sees it),
+so the density ESC controls is that of the detections left after step 2.
 
 The threshold is one number per scan, as in the paper. Each sector is taken as one scan; for a
 SeaKing that publishes a sweep in several sectors, ESC would update once per sector.
@@ -28,9 +48,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import Config, ConfigError, setting
+from ..intensity import IntensityConfig, condition
 from ..records import DETECTION_DTYPE
-from ..sector import SectorGeometry
-from .cells import threshold_cells
+from ..sector import GeometryError, SectorError, SectorGeometry, check_sector
+from ..structure import SectorBackground, StructureConfig, echo_shapes, is_structure_shape, vetoed_groups
+from .cells import CellDetections, threshold_cells
 from .conversion import convert_measurements
 from .esc import ExtremumSeekingController
 from .scmde import PolarWindow, scmde, sunflower
@@ -42,8 +64,17 @@ _SQRT12 = 2.0 * math.sqrt(3.0)
 _DISC = sunflower(256)
 
 
+def _extent_sigma(sigma: float, span: np.ndarray, step: float) -> float | np.ndarray:
+    """Std of a position uniform over ``span`` cells of ``step``: ``sigma^2 + (span^2 - 1) step^2 / 12``
+    (``sigma`` itself, exactly, for single cells)."""
+    if not np.any(span > 1):
+        return sigma
+    return np.where(span > 1, np.sqrt(sigma * sigma + (span * span - 1.0) * step * step / 12.0), sigma)
+
+
 class DetectionInputError(ValueError):
-    """A sector cannot be processed (non-finite amplitudes, wrong shape); it should be dropped."""
+    """A sector cannot be processed (the sector rule of :func:`~sonar_tracking.core.sector.check_sector`:
+    wrong shape, not numbers, NaN, infinite or negative values); it should be dropped."""
 
 
 @dataclass(frozen=True)
@@ -65,9 +96,14 @@ class ThresholdConfig(Config):
 class CellConfig(Config):
     """How cells become detections."""
 
-    merge_bins: int = setting(1, 'resolution cell depth in image rows: nearer cells above threshold are one echo',
-                              low=1, high=64)
+    grouping: str = setting('cells', "'cells': every cell above threshold is a detection (ESC paper; joined only "
+                            "within merge_bins x merge_beams); 'connected': one detection per connected group of "
+                            'cells above threshold', choices=('cells', 'connected'))
+    merge_bins: int = setting(1, 'resolution cell depth in image rows: cells above threshold nearer than this are '
+                              'one echo', low=1, high=64)
     merge_beams: int = setting(1, 'resolution cell width in image columns', low=1, high=64)
+    max_detections: int = setting(2000, 'at most this many detections per scan, the strongest (peak amplitude); the '
+                                  'number cut is reported', low=1, high=1_000_000)
     sigma_r: float = setting(0.0, 'range std of a detection; 0 = range bin / (2 sqrt 3)', unit='m', low=0.0, high=1e4)
     sigma_theta_deg: float = setting(0.0, 'bearing std of a detection; 0 = beam step / (2 sqrt 3)', unit='deg',
                                      low=0.0, high=45.0)
@@ -105,10 +141,12 @@ class EscConfig(Config):
 class DetectorConfig(Config):
     """All settings of the detection stage."""
 
+    intensity: IntensityConfig = dataclasses.field(default_factory=IntensityConfig)
     threshold: ThresholdConfig = dataclasses.field(default_factory=ThresholdConfig)
     cells: CellConfig = dataclasses.field(default_factory=CellConfig)
     scmde: ScmdeConfig = dataclasses.field(default_factory=ScmdeConfig)
     esc: EscConfig = dataclasses.field(default_factory=EscConfig)
+    structure: StructureConfig = dataclasses.field(default_factory=StructureConfig)
 
 
 @dataclass(frozen=True, eq=False)
@@ -119,6 +157,9 @@ class ScanResult:
     threshold: float         # threshold applied to this scan
     mean_density: float      # the density ESC saw (sector or local mean) [1/m^2]
     next_threshold: float    # threshold for the next scan
+    found: int = 0           # detections found before structure rejection and the max_detections cut
+    structure: int = 0       # of those, dropped as static structure (shape gates or persistent echo)
+    cut: int = 0             # of the rest, dropped by cells.max_detections (the weakest)
 
 
 class ActiveDetector:
@@ -138,8 +179,10 @@ class ActiveDetector:
         self.esc = ExtremumSeekingController(self.desired_density, t.initial, t.minimum, t.maximum,
                                              e.dither_amplitude, e.dither_decay, e.gain)
         self._enabled = e.enabled
+        self.background = SectorBackground(config.structure)
         self.scans = 0
         self.last_density = math.nan
+        self._clock = 0.0
 
     @property
     def threshold(self) -> float:
@@ -158,11 +201,26 @@ class ActiveDetector:
             self.esc.state.integrator = self.esc.state.threshold
         self._enabled = bool(on)
 
+    def reconfigure(self, config: DetectorConfig) -> None:
+        """Apply settings that need no restart of ESC: ``intensity``, ``structure`` (a change starts
+        an empty background) and ``cells.max_detections``. Any other change raises ValueError:
+        build a new detector (ESC starts again from tau_0)."""
+        old = self.config
+        same = dataclasses.replace(config, intensity=old.intensity, structure=old.structure,
+                                   cells=dataclasses.replace(config.cells, max_detections=old.cells.max_detections))
+        if same != old:
+            raise ValueError('threshold, cell, SCMDE or ESC settings changed: make a new ActiveDetector')
+        self.config = config
+        if config.structure != old.structure:
+            self.background = SectorBackground(config.structure)
+
     def reset(self) -> None:
-        """Back to tau_0 and scan 0."""
+        """Back to tau_0 and scan 0, with an empty structure background."""
         self.esc.reset()
+        self.background.reset()
         self.scans = 0
         self.last_density = math.nan
+        self._clock = 0.0
 
     def state(self) -> dict:
         """JSON-ready state: threshold, density, scan count and ESC internals."""
@@ -174,42 +232,107 @@ class ActiveDetector:
 
     def process(self, amplitudes: np.ndarray, geometry: SectorGeometry,
                 pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                focus_xy: tuple[float, float] | None = None) -> ScanResult:
+                focus_xy: tuple[float, float] | None = None, stamp: float | None = None) -> ScanResult:
         """Detect in one sector taken from ``pose`` (sensor x, y, yaw in the world frame).
 
-        ``focus_xy``: world position of the best track, used when ``esc.density_source`` is
-        ``best_track`` (the sector mean is used while there is none).
+        ``amplitudes`` are the sensor's values (bins x beams, any numeric dtype), decoded by
+        ``intensity``. ``focus_xy``: world position of the best track, used when
+        ``esc.density_source`` is ``best_track`` (the sector mean is used while there is none).
+        ``stamp`` [s] times the structure background; without it scans are ``geometry.scan_time``
+        (1 s if 0) apart. Raises DetectionInputError for a sector that cannot be used (nothing
+        changes then).
         """
-        a = np.asarray(amplitudes)
-        if a.shape != geometry.shape:
-            raise DetectionInputError(f'amplitudes have shape {a.shape}, geometry says {geometry.shape}')
-        if not np.isfinite(a).all():
-            raise DetectionInputError(f'{int((~np.isfinite(a)).sum())} amplitudes are NaN or infinite')
         cfg = self.config
+        try:
+            raw = check_sector(amplitudes, geometry, cfg.intensity.coding)
+        except (SectorError, GeometryError) as exc:
+            raise DetectionInputError(str(exc)) from None
+        if stamp is not None and not math.isfinite(stamp):
+            raise DetectionInputError(f'stamp {stamp} is not finite')
+        if not all(map(math.isfinite, pose)):
+            raise DetectionInputError(f'sonar pose {pose} is not finite')
+        a, geometry = condition(raw, geometry, cfg.intensity)
+        if raw.dtype.kind == 'f':
+            a = a.astype(raw.dtype, copy=False)  # the sensor's precision: tau compares as before
+        t = self._time(stamp, geometry)
         tau = self.threshold
-        cells = threshold_cells(a, tau, cfg.cells.merge_bins, cfg.cells.merge_beams)
+        cells = threshold_cells(a, tau, cfg.cells.merge_bins, cfg.cells.merge_beams,
+                                cfg.cells.grouping == 'connected', echoes=cfg.structure.enabled)
+        found = len(cells)
+        keep = np.arange(found)
+        if cfg.structure.enabled:
+            keep = np.flatnonzero(~self._structure(cells, geometry, pose, t))
+        n_structure = found - len(keep)
+        cut = max(0, len(keep) - cfg.cells.max_detections)
+        if cut:
+            strongest = np.argsort(-cells.amplitude[keep], kind='stable')[:cfg.cells.max_detections]
+            keep = np.sort(keep[strongest])
         dr = geometry.range_resolution if geometry.n_bins > 1 else 1.0
-        r = geometry.range_min + cells.rows * dr
-        b = geometry.angle_min + cells.cols * geometry.angle_increment
+        r = geometry.range_min + cells.rows[keep] * dr
+        b = geometry.angle_min + cells.cols[keep] * geometry.angle_increment
         sigma_r = cfg.cells.sigma_r or dr / _SQRT12
         sigma_b = math.radians(cfg.cells.sigma_theta_deg) or geometry.angle_increment / _SQRT12
+        sigma_r = _extent_sigma(sigma_r, cells.span_rows[keep], dr)
+        sigma_b = _extent_sigma(sigma_b, cells.span_cols[keep], geometry.angle_increment)
         xy, cov = convert_measurements(r, b, sigma_r, sigma_b, pose, cfg.cells.conversion == 'unbiased')
-        window = PolarWindow(max(0.0, geometry.range_min - dr / 2), geometry.range_max + dr / 2,
+        r_hi = geometry.range_max + dr / 2
+        r_lo = min(max(0.0, geometry.range_min - dr / 2, cfg.intensity.blank_range), r_hi)
+        window = PolarWindow(r_lo, r_hi,
                              geometry.angle_min - geometry.angle_increment / 2,
                              geometry.angle_max + geometry.angle_increment / 2)
-        sensor_xy = np.stack([r * np.cos(b), r * np.sin(b)], axis=-1)
-        rho = scmde(sensor_xy, cfg.scmde.order, window if cfg.scmde.edge_correction else None)
+        if cut:
+            # The strongest detections are no Poisson sample: the count estimate of every detection.
+            rho = np.full(len(keep), (found - n_structure) / window.area)
+        else:
+            sensor_xy = np.stack([r * np.cos(b), r * np.sin(b)], axis=-1)
+            rho = scmde(sensor_xy, cfg.scmde.order, window if cfg.scmde.edge_correction else None)
         density = self._esc_input(xy, rho, focus_xy, pose, window)
         self.last_density = density
         self.scans += 1
         if self.enabled:
             self.esc.update(density)
-        rec = np.zeros(len(cells), DETECTION_DTYPE)
+        rec = np.zeros(len(keep), DETECTION_DTYPE)
         rec['x'], rec['y'] = xy[:, 0], xy[:, 1]
-        rec['range'], rec['bearing'], rec['amplitude'] = r, b, cells.amplitude
+        rec['range'], rec['bearing'], rec['amplitude'] = r, b, cells.amplitude[keep]
         rec['clutter_density'] = rho
         rec['cov_xx'], rec['cov_xy'], rec['cov_yy'] = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
-        return ScanResult(rec, tau, density, self.threshold)
+        return ScanResult(rec, tau, density, self.threshold, found=found, structure=n_structure, cut=cut)
+
+    def _time(self, stamp: float | None, geometry: SectorGeometry) -> float:
+        """The scan's time for the structure background: the stamp, or the scan count's clock."""
+        if stamp is not None:
+            return float(stamp)
+        t = self._clock
+        self._clock += geometry.scan_time or 1.0
+        return t
+
+    def _structure(self, cells: CellDetections, geometry: SectorGeometry, pose: tuple[float, float, float],
+                   t: float) -> np.ndarray:
+        """Which detections are static structure (see :mod:`sonar_tracking.core.structure`); the
+        background then learns this scan's above-threshold cells."""
+        sc = self.config.structure
+        n = cells.n_echoes
+        structure = np.zeros(n, bool)
+        if sc.shape_gates and n:
+            dr = geometry.range_resolution if geometry.n_bins > 1 else 1.0
+            r = geometry.range_min + dr * cells.cell_rows
+            b = geometry.angle_min + geometry.angle_increment * cells.cell_cols
+            c, s = np.cos(b), np.sin(b)
+            across = np.maximum(r, 0.5 * dr) * geometry.angle_increment
+            vr, vt = dr * dr / 12.0, across * across / 12.0
+            length, width, area = echo_shapes(r * c, r * s, cells.cell_echo, n, c * c * vr + s * s * vt,
+                                              c * s * (vr - vt), s * s * vr + c * c * vt, dr * across)
+            structure |= is_structure_shape(length, width, area, sc)
+        if sc.persistence_veto:
+            on = self.background.persistent(cells.cell_rows, cells.cell_cols, geometry, pose, t)
+            structure |= vetoed_groups(cells.cell_echo, n, on, sc.veto_fraction)
+            echo = np.zeros(geometry.shape, bool)
+            echo[cells.cell_rows, cells.cell_cols] = True
+            self.background.update(echo, geometry, pose, t)
+        drop = np.zeros(len(cells), bool)
+        hit = structure[cells.cell_echo]
+        drop[cells.cell_group[hit]] = True
+        return drop
 
     def _esc_input(self, xy: np.ndarray, rho: np.ndarray, focus_xy, pose, window: PolarWindow) -> float:
         esc = self.config.esc

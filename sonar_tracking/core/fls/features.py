@@ -392,9 +392,10 @@ def patch_features(patches: np.ndarray, masks: np.ndarray, config: FeatureConfig
                    features=None) -> np.ndarray:
     """Features f01..f30 of ``K`` image patches ``(K, h, w)``, each over the pixels of its mask
     ``(K, h, w)`` bool (pixels that hold data): shape ``(K, 30)``, or ``(K, len(features))`` for
-    the Table 2 numbers ``features``; NaN rows for empty masks. For
-    computing features at many positions (particles) in one call; the patches are stacked with a no-data row between them and handed to
-    :func:`region_features`, so the results are exactly those of the same pixels in an image."""
+    the Table 2 numbers ``features``; NaN rows for empty masks. For computing features at many
+    positions (particles) in one call; the patches are stacked with a no-data row between them and
+    handed to :func:`region_features`, so the results are exactly those of the same pixels in an
+    image."""
     p = np.asarray(patches, dtype=np.float64)
     m = np.asarray(masks, dtype=bool)
     if p.ndim != 3 or m.shape != p.shape:

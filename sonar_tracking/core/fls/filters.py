@@ -14,9 +14,11 @@ how. Our design, each choice with its reason:
 2. **Range normalisation (CFAR-like).** Each range bin is divided by the background level at that
    range: the median over all buffered beams of the bin (robust to the few cells a target
    occupies), smoothed over ``background_bins`` bins, divided by ln 2 (the median of fully
-   developed, exponential speckle of mean 1). Intensity changes with range (spreading losses the
-   time-varying gain does not quite undo, receiver noise growing far out), so thresholds in
-   units of the local background keep one false-alarm rate at every range.
+   developed, exponential speckle of mean 1). Exact zeros are no data and stay out of the median
+   (real imaging sonars report most of a bin as 0 in open water); see :func:`background_level`.
+   Intensity changes with range (spreading losses the time-varying gain does not quite undo,
+   receiver noise growing far out), so thresholds in units of the local background keep one
+   false-alarm rate at every range.
 3. **A trimmed mean rather than the bare median.** The filter sorts each window, drops the
    ``trim`` largest and ``trim`` smallest samples and averages the rest: an alpha-trimmed mean,
    the order-statistic family whose ends are the box mean (``trim = 0``) and the median
@@ -121,7 +123,9 @@ def trimmed_mean(values: np.ndarray, window_bins: int, window_beams: int, trim: 
                            np.cumsum(np.nan_to_num(srt, nan=0.0), axis=-1, dtype=np.float64)], axis=-1)
     lo = np.minimum(trim, (n - 1) // 2).clip(0)
     hi = np.maximum(n - lo, lo + 1)
-    take = lambda k: np.take_along_axis(csum, k[..., None], axis=-1)[..., 0]
+
+    def take(k):
+        return np.take_along_axis(csum, k[..., None], axis=-1)[..., 0]
     with np.errstate(invalid='ignore', divide='ignore'):
         out = (take(hi) - take(lo)) / (hi - lo)
     few = (n > 0) & (n < 2 * trim + 1)
@@ -132,8 +136,29 @@ def trimmed_mean(values: np.ndarray, window_bins: int, window_beams: int, trim: 
 
 def background_level(raw: np.ndarray, background_bins: int) -> np.ndarray:
     """Mean background intensity per range bin of beams ``raw`` (bins x beams): the median over beams,
-    smoothed over ``background_bins`` bins, divided by ln 2 (exponential speckle). Always > 0."""
-    prof = np.median(raw, axis=1)
+    smoothed over ``background_bins`` bins, divided by ln 2 (exponential speckle). Always > 0.
+
+    Exact zeros are "no data" (below the sensor's gain floor, blanked, or beyond its range), not
+    background: imaging sonars report 45-73 % of a range bin as exactly 0 in open water, and a median
+    over them would be 0 and break the normalisation. So the median is taken over the non-zero cells
+    of each bin; a bin with fewer than ``max(3, 10 %)`` of its beams non-zero takes the level of the
+    nearest bins that have enough (interpolated between them), and if none has, the median of all
+    non-zero cells (1 if there are none). Levels are floored at the smallest positive level, so no
+    bin divides by zero. Without zeros this is the plain per-bin median.
+    """
+    v = np.asarray(raw)
+    data = np.isfinite(v) & (v > 0)
+    if data.all():
+        prof = np.median(v, axis=1)
+    else:
+        prof = np.full(v.shape[0], np.nan, dtype=np.result_type(v.dtype, np.float32))
+        enough = data.sum(axis=1) >= max(3, math.ceil(0.1 * v.shape[1]))
+        if enough.any():
+            prof[enough] = np.nanmedian(np.where(data[enough], v[enough], np.nan), axis=1)
+            idx = np.arange(v.shape[0])
+            prof[~enough] = np.interp(idx[~enough], idx[enough], prof[enough])
+        else:
+            prof[:] = np.median(v[data]) if data.any() else _LN2
     if background_bins > 1 and prof.size > 1:
         prof = median_filter(prof, size=min(background_bins, 2 * prof.size - 1), mode='nearest')
     level = prof / _LN2

@@ -3,9 +3,18 @@
 :class:`FlsProcessor` wires the parts together, as the ``fls_features`` node and the evaluation
 tools use them::
 
-    sector --check--> PolarSweepFilter --blocks--> ImageBuilder --image--> grow_regions --labels-->
-           region_features --> REGION_DTYPE records (x, y in the image frame; range, bearing from
-           the sonar's latest pose)
+    sector --check, intensity--> PolarSweepFilter --blocks--> ImageBuilder --image--> grow_regions
+           --labels--> structure rejection --> region_features --> REGION_DTYPE records (x, y in the
+           image frame; range, bearing from the sonar's latest pose)
+
+The sector's values are turned into linear echo amplitude by ``intensity``
+(:func:`sonar_tracking.core.intensity.condition`: 8-bit dB counts, power or display values, noise
+floor, near-range blanking, maximum range); the default takes the simulator's linear amplitude as
+it is. Static structure (``structure``, :mod:`sonar_tracking.core.structure`) is rejected per
+region: regions too long, too wide, too large or elongated, and regions lying on pixels that echo
+persistently. The persistent-echo background is a grid in the image frame (the sensor frame for a
+static sonar, the world frame for a moving one) that learns once per completed sweep from the
+pixels above the growth level ``segment.grow_db``, so each pixel is one look per sweep.
 
 A frame (:class:`FlsFrame`) is emitted when a sweep completes (:mod:`.sweep`), or after every
 sector with ``image.publish = 'sector'``. Its image is the filtered, range-normalised intensity
@@ -22,14 +31,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Config
+from ..config import Config, ConfigError
+from ..intensity import IntensityConfig, condition
 from ..records import FEATURE_NAMES, REGION_DTYPE
-from ..sector import SectorGeometry
+from ..sector import GeometryError, SectorError, SectorGeometry
+from ..sector import check_sector as sector_rule
+from ..structure import GridBackground, StructureConfig, echo_shapes, is_structure_shape, vetoed_groups
 from .features import FeatureConfig, region_features
 from .filters import FilterConfig, PolarSweepFilter
 from .grid import ImageGrid
 from .image import ImageBuilder, ImageConfig, ImageTooLargeError
-from .segmentation import SegmentConfig, cells_per_pixel, grow_regions
+from .segmentation import SegmentConfig, cells_per_pixel, grow_regions, relabel
 from .sweep import SweepTracker
 
 __all__ = ['FlsConfig', 'FlsFrame', 'FlsProcessor', 'FlsInputError', 'check_sector', 'regions_to_records']
@@ -43,10 +55,21 @@ class FlsInputError(ValueError):
 class FlsConfig(Config):
     """All settings of the FLS front end, grouped by stage (dotted names: ``segment.seed_db``)."""
 
+    intensity: IntensityConfig = dataclasses.field(default_factory=IntensityConfig)
     image: ImageConfig = dataclasses.field(default_factory=ImageConfig)
     filter: FilterConfig = dataclasses.field(default_factory=FilterConfig)
     segment: SegmentConfig = dataclasses.field(default_factory=SegmentConfig)
+    structure: StructureConfig = dataclasses.field(default_factory=StructureConfig)
     features: FeatureConfig = dataclasses.field(default_factory=FeatureConfig)
+
+    def validate(self) -> None:
+        super().validate()
+        reach = self.intensity.max_range
+        side = math.ceil(2.0 * reach / self.image.resolution) if reach else 0
+        if side > self.image.max_side:
+            raise ConfigError(f'intensity.max_range = {reach:g} m needs an image of up to {side} pixels a side at '
+                              f'image.resolution = {self.image.resolution:g} m, more than image.max_side = '
+                              f'{self.image.max_side}; raise image.resolution or image.max_side, or lower max_range')
 
 
 @dataclass(eq=False)
@@ -67,31 +90,26 @@ class FlsFrame:
     sectors: int
     background_db: float
     timings: dict[str, float] = field(default_factory=dict)
+    structure: int = 0   # regions dropped as static structure in this frame
 
 
-def check_sector(amplitudes: np.ndarray, geometry: SectorGeometry) -> np.ndarray:
-    """The sector as float32 (bins x beams), or FlsInputError saying what is wrong with it."""
+def check_sector(amplitudes: np.ndarray, geometry: SectorGeometry,
+                 intensity: IntensityConfig | None = None) -> tuple[np.ndarray, SectorGeometry]:
+    """The sector as float32 linear amplitude (bins x beams) and its geometry, decoded and gated by
+    ``intensity`` (``max_range`` may cut bins), or FlsInputError saying what is wrong with it (the
+    rule of every sector consumer, :func:`sonar_tracking.core.sector.check_sector`)."""
+    intensity = intensity or IntensityConfig()
     a = np.asarray(amplitudes)
     if a.ndim != 2:
         raise FlsInputError(f'sector must be a 2-D array (range bins x beams), got shape {a.shape}')
     if a.size == 0:
         raise FlsInputError(f'sector is empty (shape {a.shape})')
-    if a.shape != geometry.shape:
-        raise FlsInputError(f'sector is {a.shape[0]} bins x {a.shape[1]} beams but its geometry says '
-                            f'{geometry.n_bins} x {geometry.n_beams}')
-    if a.dtype.kind not in 'uif':
-        raise FlsInputError(f'sector has dtype {a.dtype}; expected numbers (linear echo intensity)')
-    a = a.astype(np.float32, copy=False)
-    bad = ~np.isfinite(a)
-    if bad.any():
-        raise FlsInputError(f'sector has {int(bad.sum())} NaN or infinite values; the driver must send '
-                            'finite intensities')
-    if (a < 0).any():
-        raise FlsInputError(f'sector has {int((a < 0).sum())} negative values; expected linear echo '
-                            'intensity >= 0')
-    if not a.any():
-        raise FlsInputError('sector is all zero (no echo at all: transducer muted, gain 0 or a driver fault)')
-    return a
+    try:
+        a = sector_rule(a, geometry, intensity.coding)
+    except (SectorError, GeometryError) as exc:
+        raise FlsInputError(str(exc)) from None
+    amplitude, geometry = condition(a, geometry, intensity)
+    return amplitude.astype(np.float32), geometry
 
 
 def regions_to_records(image: np.ndarray, labels: np.ndarray, n: int, grid: ImageGrid,
@@ -129,6 +147,7 @@ class FlsProcessor:
         self.filter = PolarSweepFilter(self.config.filter)
         self.builder = ImageBuilder(self.config.image)
         self.sweep = SweepTracker()
+        self.background: GridBackground | None = None
         self.resets = 0
         self._weight_key: tuple | None = None
         self._weight: np.ndarray | None = None
@@ -146,6 +165,7 @@ class FlsProcessor:
         self.filter.reset()
         self.builder.reset()
         self.sweep.reset()
+        self.background = None
         self.resets += 1
         self._clear()
 
@@ -158,6 +178,8 @@ class FlsProcessor:
             self.reset()
         else:
             self.builder.config = config.image
+        if config.structure != old.structure:
+            self.background = None
 
     def add_sector(self, amplitudes: np.ndarray, geometry: SectorGeometry,
                    pose: tuple[float, float, float] = (0.0, 0.0, 0.0), stamp: float = 0.0) -> list[FlsFrame]:
@@ -165,7 +187,7 @@ class FlsProcessor:
         ``stamp`` [s]; returns the frames it completes (none, one, or the previous sweep's and this
         sector's). Raises FlsInputError for a sector that cannot be used (nothing is changed)."""
         t0 = time.perf_counter()
-        a = check_sector(amplitudes, geometry)
+        a, geometry = check_sector(amplitudes, geometry, self.config.intensity)
         if not all(map(math.isfinite, pose)):
             raise FlsInputError(f'sonar pose {pose} is not finite')
         if stamp < self._last_stamp:
@@ -173,7 +195,7 @@ class FlsProcessor:
         frames: list[FlsFrame] = []
         step = self.sweep.update(geometry)
         if step.starts and self._pending:
-            frames.append(self._emit())
+            frames.append(self._emit(sweep_end=True))
         try:
             for block in self.filter.add(a, geometry, pose):
                 self.builder.paint(block.values, block.geometry, block.pose, stamp)
@@ -184,7 +206,7 @@ class FlsProcessor:
         self._last_stamp, self._pose, self._geometry = stamp, tuple(map(float, pose)), geometry
         self._t_sectors += time.perf_counter() - t0
         if step.ends or self.config.image.publish == 'sector':
-            frames.append(self._emit())
+            frames.append(self._emit(sweep_end=step.ends))
         return frames
 
     def flush(self) -> FlsFrame | None:
@@ -199,13 +221,17 @@ class FlsProcessor:
             self._weight_key = key
         return self._weight
 
-    def _emit(self) -> FlsFrame:
+    def _emit(self, sweep_end: bool = True) -> FlsFrame:
         c = self.config
         t0 = time.perf_counter()
         raw, grid = self.builder.image()
         image = np.nan_to_num(raw, nan=0.0)
         t1 = time.perf_counter()
         labels, n = grow_regions(image, c.segment, grid.resolution, self._cell_weight(grid))
+        dropped = 0
+        if c.structure.enabled:
+            labels, kept = self._reject_structure(image, raw, grid, labels, n, sweep_end)
+            dropped, n = n - kept, kept
         t2 = time.perf_counter()
         regions = regions_to_records(image, labels, n, grid, self._pose, c.features)
         t3 = time.perf_counter()
@@ -214,6 +240,48 @@ class FlsProcessor:
         frame = FlsFrame(stamp=self._last_stamp, image=image, grid=grid, labels=labels, regions=regions,
                          sensor_pose=self._pose, sectors=self._pending, background_db=background_db,
                          timings={'filter_paint': self._t_sectors, 'image': t1 - t0, 'segment': t2 - t1,
-                                  'features': t3 - t2})
+                                  'features': t3 - t2}, structure=dropped)
         self._pending, self._t_sectors = 0, 0.0
         return frame
+
+    def _reject_structure(self, image: np.ndarray, raw: np.ndarray, grid: ImageGrid, labels: np.ndarray, n: int,
+                          learn: bool) -> tuple[np.ndarray, int]:
+        """Regions that are not static structure, relabelled (see :mod:`sonar_tracking.core.structure`);
+        at the end of a sweep the background then learns this image."""
+        sc = self.config.structure
+        res = grid.resolution
+        structure = np.zeros(n, bool)
+        rows, cols = np.nonzero(labels)
+        own = labels[rows, cols] - 1
+        x, y = grid.pixel_to_point(rows, cols)
+        if sc.shape_gates and n:
+            var = res * res / 12.0
+            length, width, area = echo_shapes(x, y, own, n, var, 0.0, var, res * res)
+            structure |= is_structure_shape(length, width, area, sc)
+        if sc.persistence_veto:
+            if self.background is None:
+                g = self._geometry
+                sensor_cell = max(g.range_resolution, 0.5 * (g.range_min + g.range_max) * g.angle_increment)
+                self.background = GridBackground(sc, sc.world_cell or max(res, sensor_cell))
+            t = self._last_stamp
+            if n:
+                on = self.background.persistent(x, y, t)
+                structure |= vetoed_groups(own, n, on, sc.veto_fraction)
+            if learn:
+                self._learn(image, raw, grid, t)
+        keep = np.concatenate([[False], ~structure])
+        return relabel(labels, keep)
+
+    def _learn(self, image: np.ndarray, raw: np.ndarray, grid: ImageGrid, t: float) -> None:
+        """One look of the background at every painted pixel; echo where above the growth level."""
+        level = np.float32(10.0 ** (self.config.segment.grow_db / 10.0))
+        g = self._geometry
+        reach = g.range_max + g.range_resolution + grid.resolution
+        if grid.origin_yaw == 0.0:  # the builder's images: x along columns, y along rows
+            xs, _ = grid.pixel_to_point(np.zeros(grid.width), np.arange(grid.width))
+            _, ys = grid.pixel_to_point(np.arange(grid.height), np.zeros(grid.height))
+            self.background.update_raster(xs, ys, np.isfinite(raw), image > level, self._pose[:2], reach, t)
+        else:
+            rows, cols = np.nonzero(np.isfinite(raw))
+            x, y = grid.pixel_to_point(rows, cols)
+            self.background.update([(x, y, image[rows, cols] > level)], self._pose[:2], reach, t)

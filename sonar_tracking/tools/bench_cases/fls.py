@@ -38,10 +38,10 @@ def _turn(sector_size: int):
             return sectors, cfg.seaking.sweep_time
 
 
-def _frame(sector_size: int):
-    from sonar_tracking.core.fls import FlsProcessor
+def _frame(sector_size: int, settings: dict | None = None):
+    from sonar_tracking.core.fls import FlsConfig, FlsProcessor
     sectors, period = _turn(sector_size)
-    processor = FlsProcessor()
+    processor = FlsProcessor(FlsConfig.from_flat(settings or {}))
     clock = [0.0]
 
     def one_frame():
@@ -61,3 +61,9 @@ register(Case(name='fls.frame_400', group='fls', make=lambda: _frame(400), limit
               description='FLS frame 400 x 400: filter + paint + region growing + 30 features of 20 regions'))
 register(Case(name='fls.frame_400_sectors', group='fls', make=lambda: _frame(10), repeats=20,
               description='the same frame as 40 sectors of 10 beams (as the node receives it)'))
+register(Case(name='fls.frame_400_structure', group='fls', repeats=30, compare_to='fls.frame_400',
+              make=lambda: _frame(400, {'structure.enabled': True, 'structure.max_length': 6.0,
+                                        'structure.elongated_length': 3.0}),
+              description='fls.frame_400 with static-structure rejection: shape gates, persistent-echo '
+                          'veto and learning on the 400 x 400 image (its 20 targets are static, so they '
+                          'become structure and no features are computed)'))

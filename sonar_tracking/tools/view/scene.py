@@ -35,25 +35,9 @@ from msg_adapters.map_info import fls_image, map_info_to_grid
 from sonar_tracking.core.fan import PolarCanvas, fan_extent, to_mono8
 from sonar_tracking.core.intensity import CODINGS, decode
 
-__all__ = ['TOPICS', 'IMAGE_TOPICS', 'SceneLogger', 'blueprint']
+from . import IMAGE_TOPICS, TOPICS
 
-#: Relative topic name -> ROS message type, every topic the view understands.
-TOPICS: dict[str, str] = {
-    'sonar/sector': 'sensor_msgs/msg/Image',
-    'sonar/sector_info': 'sensor_msgs/msg/LaserScan',
-    'platform/odometry': 'nav_msgs/msg/Odometry',
-    'sonar/truth': 'sensor_msgs/msg/PointCloud2',
-    'detections': 'sensor_msgs/msg/PointCloud2',
-    'detector/threshold': 'std_msgs/msg/Float64',
-    'detector/clutter_density': 'std_msgs/msg/Float64',
-    'tracks': 'sensor_msgs/msg/PointCloud2',
-    'fls/image': 'sensor_msgs/msg/Image',
-    'fls/image_info': 'nav_msgs/msg/MapMetaData',
-    'fls/regions': 'sensor_msgs/msg/PointCloud2',
-    'gpf/tracks': 'sensor_msgs/msg/PointCloud2',
-}
-#: The large ones: a live view takes them best effort (it may skip some, never slows a publisher).
-IMAGE_TOPICS = frozenset({'sonar/sector', 'sonar/sector_info', 'fls/image', 'fls/image_info'})
+__all__ = ['TOPICS', 'IMAGE_TOPICS', 'SceneLogger', 'blueprint']  # topics re-exported from the package
 
 _CONFIRMED = {'tracks': (40, 220, 60), 'gpf/tracks': (60, 150, 255)}
 _TENTATIVE = (160, 160, 160)

@@ -24,7 +24,8 @@ def test_cells_of_one_resolution_cell_merge_to_a_weighted_centroid():
     d = threshold_cells(a, 1.0, merge_bins=2, merge_beams=2)
     order = np.argsort(d.rows)
     assert len(d) == 2
-    assert d.rows[order[0]] == pytest.approx((2 * 9 + 3 * 3) / 12) and d.cols[order[0]] == pytest.approx((2 * 6 + 3 * 6) / 12)
+    assert d.rows[order[0]] == pytest.approx((2 * 9 + 3 * 3) / 12)
+    assert d.cols[order[0]] == pytest.approx((2 * 6 + 3 * 6) / 12)
     assert d.amplitude[order[0]] == 6.0 and (d.rows[order[1]], d.cols[order[1]]) == (6, 6)
     # Two cells a full resolution cell apart stay separate.
     b = np.zeros((8, 8))
@@ -84,3 +85,81 @@ def test_best_track_density_is_local():
         b = sector.process(s.amplitudes, s.geometry, s.pose).mean_density
         ratios.append(a / b)
     assert np.median(ratios) < 0.3
+
+
+def neighbour_components(mask, merge_bins, merge_beams):
+    """Reference: components of cells at most merge - 1 apart in both directions (union-find)."""
+    pts = list(zip(*np.nonzero(mask)))
+    parent = list(range(len(pts)))
+
+    def root(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+    for i in range(len(pts)):
+        for j in range(i):
+            if abs(pts[i][0] - pts[j][0]) <= merge_bins - 1 and abs(pts[i][1] - pts[j][1]) <= merge_beams - 1:
+                parent[root(i)] = root(j)
+    return [root(i) for i in range(len(pts))]
+
+
+@pytest.mark.parametrize('merge', [(3, 3), (1, 4), (4, 1), (5, 2), (2, 7), (1, 2)])
+def test_any_merge_size_groups_cells_within_the_resolution_cell(merge):
+    """Regression: merge sizes other than (1, 1) and (2, 2) raised 'structure dimensions must be equal
+    to 3' in ndimage.label."""
+    from sonar_tracking.core.detection import ActiveDetector, DetectorConfig
+    from sonar_tracking.core.sector import SectorGeometry
+    rng = np.random.default_rng(sum(merge))
+    a = np.where(rng.random((30, 40)) < 0.06, rng.uniform(4.0, 9.0, (30, 40)), 1.0)
+    d = threshold_cells(a, 3.0, *merge)
+    roots = neighbour_components(a > 3.0, *merge)
+    assert len(d) == len(set(roots))
+    # Same partition as the reference, and each detection at its cells' weighted centroid.
+    assert len({(g, r) for g, r in zip(d.cell_group, roots)}) == len(d)
+    w = a[d.cell_rows, d.cell_cols]
+    for k in range(len(d)):
+        on = d.cell_group == k
+        assert d.rows[k] == pytest.approx(np.sum(w[on] * d.cell_rows[on]) / w[on].sum())
+        assert d.amplitude[k] == w[on].max()
+    g = SectorGeometry(angle_min=-0.3, angle_increment=0.015, n_beams=40, range_min=100.0, range_max=390.0, n_bins=30)
+    cfg = DetectorConfig.from_flat({'cells.merge_bins': merge[0], 'cells.merge_beams': merge[1],
+                                    'esc.enabled': False})
+    assert len(ActiveDetector(cfg).process(a.astype(np.float32), g).detections) == len(d)
+
+
+def test_connected_grouping_is_one_detection_per_connected_group():
+    a = np.ones((12, 12))
+    a[2:5, 2:4] = 5.0        # a 3 x 2 block
+    a[5, 4] = 6.0            # touching it diagonally
+    a[9, 9] = 4.0            # alone
+    a[9, 11] = 4.0           # two columns away: not connected
+    d = threshold_cells(a, 3.0, connected=True)
+    assert len(d) == 3 and d.n_echoes == 3
+    big = int(np.argmax(d.amplitude))
+    assert (d.span_rows[big], d.span_cols[big], d.amplitude[big]) == (4, 3, 6.0)
+    # The paper's cells: every cell alone, but the connected echoes are the same.
+    cells = threshold_cells(a, 3.0)
+    assert len(cells) == 9 and cells.n_echoes == 3 and (cells.span_rows == 1).all()
+
+
+def test_covariance_of_a_group_is_uniform_over_its_extent():
+    """A single cell keeps sigma_r exactly; a group spanning L bins gets (L dr)^2 / 12 (eqs. 8-10 with
+    that W)."""
+    from sonar_tracking.core.detection import ActiveDetector, DetectorConfig
+    from sonar_tracking.core.sector import SectorGeometry
+    g = SectorGeometry(angle_min=-0.01, angle_increment=0.0002, n_beams=101, range_min=1000.0, range_max=1100.0,
+                       n_bins=101)  # 1 m bins; the beam at column 50 points along x
+    a = np.zeros(g.shape, np.float32)
+    a[10:15, 50] = 5.0    # 5 bins deep
+    a[60, 20] = 5.0       # a single cell
+    det = ActiveDetector(DetectorConfig.from_flat({'cells.grouping': 'connected', 'esc.enabled': False}))
+    d = det.process(a, g).detections
+    deep = d[np.argmin(d['range'])]
+    single = d[np.argmax(d['range'])]
+    assert deep['range'] == pytest.approx(1012.0)
+    assert deep['cov_xx'] == pytest.approx(5.0 ** 2 / 12.0, rel=1e-6)
+    _, cov = convert_measurements(np.array([single['range']]), np.array([single['bearing']]), 1.0 / math.sqrt(12),
+                                  0.0002 / math.sqrt(12))
+    assert [single['cov_xx'], single['cov_xy'], single['cov_yy']] == \
+        pytest.approx([cov[0, 0, 0], cov[0, 0, 1], cov[0, 1, 1]], rel=1e-12)

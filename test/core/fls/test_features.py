@@ -79,7 +79,9 @@ def test_shape_moments_of_edge_distances(case):
     er, ec = np.nonzero(find_boundaries(mask.astype(int), connectivity=1, mode='inner') & mask)
     d = np.hypot(er - cr, ec - cc)
     m1 = d.mean()
-    mu = lambda r: np.mean((d - m1) ** r)
+
+    def mu(r):
+        return np.mean((d - m1) ** r)
     sm1, sm2, sm3 = math.sqrt(mu(2)) / m1, np.cbrt(mu(3)) / m1, mu(4) ** 0.25 / m1
     assert f[9:13] == pytest.approx([sm1, sm2, sm3, sm3 - sm1], rel=1e-9, abs=1e-12)
 
@@ -142,7 +144,9 @@ def test_cooccurrence_features_match_scikit_image(case):
             pdif[abs(i - j)] += h[i, j]
     k = np.arange(2 * s + 1)
     sum_avg = float((k * psum).sum())
-    ent = lambda q: -sum(x * math.log(x) for x in q if x > 0)
+
+    def ent(q):
+        return -sum(x * math.log(x) for x in q if x > 0)
     assert f[26] == pytest.approx(sum_avg, rel=1e-9)
     assert f[27] == pytest.approx(ent(psum), rel=1e-9)
     assert f[28] == pytest.approx(float(((k - sum_avg) ** 2 * psum).sum()), rel=1e-9)

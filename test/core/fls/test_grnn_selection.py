@@ -85,7 +85,9 @@ def test_searches_find_the_informative_pair(search):
 def test_search_mechanics_on_a_known_criterion():
     """error(S) = sum of per-feature costs plus a penalty for size: the best subset is known."""
     cost = {1: 0.5, 2: -0.3, 3: -0.2, 4: 0.1, 5: -0.25}
-    error = lambda s: 1.0 + sum(cost[f] for f in s)
+
+    def error(s):
+        return 1.0 + sum(cost[f] for f in s)
     fwd, bwd = sfs(error, cost), sbs(error, cost)
     assert fwd.order == [2, 5, 3, 4, 1] and fwd.best == (2, 3, 5)
     assert bwd.best == (2, 3, 5) and bwd.subsets[-1] == (1, 2, 3, 4, 5)
