@@ -14,11 +14,12 @@ Rerun 2-D view points its vertical axis down):
   Tentative tracks are small grey points only: a clutter-rich scene has hundreds.
 
 Time plots under ``plots/``: ``threshold``, ``clutter_density``, ``confirmed/{imm_ipda,gpf}``
-(confirmed tracks) and ``counts/*`` (tentative tracks, detections, regions per message). Everything is logged on the ``stamp`` timeline (header
-stamps; the Float64 threshold and density take the stamp of the last ``detections``, which the
-detector publishes just before them), so a bag scrubs in sensor time. A message that does not
-decode is counted in :attr:`SceneLogger.errors` and dropped; per-message work and memory are
-bounded (tails keep ``tail`` points of tracks present in the latest message).
+(confirmed tracks) and ``counts/*`` (tentative tracks, detections, regions per message).
+Everything is logged on the ``stamp`` timeline (header stamps; the Float64 threshold and density
+take the stamp of the last ``detections``, which the detector publishes just before them), so a
+bag scrubs in sensor time. A message that does not decode is counted in :attr:`SceneLogger.errors`
+and dropped; per-message work and memory are bounded (tails keep ``tail`` points of tracks present
+in the latest message).
 """
 from __future__ import annotations
 
