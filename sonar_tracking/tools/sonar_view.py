@@ -10,9 +10,11 @@ scrubs it in time. The view is Rerun's: the SDK hosts a gRPC server (``--grpc-po
 recording (up to ``--memory-limit``, oldest data dropped first) and serves its web viewer over
 HTTP (``--web-port``), both on 127.0.0.1 only; the address to open is printed as
 ``view: http://...``. A live view logs only while a viewer is connected to its server
-(:func:`viewer_connected`, checked twice a second): with no browser open it takes its messages
-serialized and drops them, which costs the pipeline nothing measurable (``sonar_eval bench
-view``), and a browser shows the run from the moment it connects. ``--always`` (implied by ``--save``) logs
+(:func:`viewer_connected`, checked twice a second). It subscribes at start (so ``sonar_stack``
+and the simulator, which wait for their listeners, count it), takes its messages serialized and
+drops them while no viewer is connected, and once the pipeline runs unsubscribes until one
+connects, so that without a browser it costs the pipeline nothing (``sonar_eval bench view``);
+a browser shows the run from the moment it connects. ``--always`` (implied by ``--save``) logs
 everything, so a browser opened later sees the run from its start. The record topics are taken
 best effort (``--qos``): the view adds no acknowledgements to the pipeline's reliable writers and
 never slows them; its bounded queues drop the oldest messages when it falls behind. ``--save FILE.rrd``
@@ -199,12 +201,12 @@ def _show_live(scene, rec, url: str | None, ros_args: list[str], qos: str, gate:
                 types = rclpy_types()
                 records = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE if qos == 'reliable'
                                      else ReliabilityPolicy.BEST_EFFORT)
+                self.specs = [(topic, types.cls(msgtype), qos_profile_sensor_data if topic in IMAGE_TOPICS
+                               else records) for topic, msgtype in TOPICS.items()]
                 self.connected = gate is None
-                # Raw subscriptions: a message is only copied until a viewer wants it deserialized.
-                self.subs = [self.create_subscription(
-                    types.cls(msgtype), topic, lambda data, t=topic, c=types.cls(msgtype): self._take(t, c, data),
-                    qos_profile_sensor_data if topic in IMAGE_TOPICS else records, raw=True)
-                    for topic, msgtype in TOPICS.items()]
+                self.running = False  # a message arrived: the pipeline runs (the stack's waits are over)
+                self.subs = []
+                self._subscribe()
                 self.create_timer(10.0, self._report)
                 if gate is not None:
                     self.create_timer(0.5, self._check_viewer)
@@ -213,16 +215,30 @@ def _show_live(scene, rec, url: str | None, ros_args: list[str], qos: str, gate:
                 if url is not None:
                     print(f'view: {url}', flush=True)
 
+            def _subscribe(self) -> None:
+                # Raw: a message is only copied until a viewer wants it deserialized.
+                self.subs = [self.create_subscription(cls, topic, lambda data, t=topic, c=cls: self._take(t, c, data),
+                                                      profile, raw=True) for topic, cls, profile in self.specs]
+
             def _take(self, topic: str, cls: type, data: bytes) -> None:
+                self.running = True
                 if self.connected:
                     scene.handle(topic, deserialize_message(data, cls))
 
             def _check_viewer(self) -> None:
                 connected = viewer_connected(gate)
+                if connected and not self.subs:
+                    self._subscribe()
                 if connected != self.connected:
                     self.get_logger().info('a viewer connected: logging' if connected else
-                                           'no viewer connected: not logging (the pipeline pays nothing)')
+                                           'no viewer connected: not logging')
                 self.connected = connected
+                if not connected and self.subs and self.running:
+                    # Once the pipeline runs, no subscription is left to cost it anything.
+                    for sub in self.subs:
+                        self.destroy_subscription(sub)
+                    self.subs = []
+                    self.get_logger().info('unsubscribed until a viewer connects')
 
             def _report(self) -> None:
                 self.get_logger().info(_summary(scene))
