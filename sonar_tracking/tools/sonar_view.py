@@ -10,7 +10,7 @@ scrubs it in time. The view is Rerun's: the SDK hosts a gRPC server (``--grpc-po
 recording (up to ``--memory-limit``, oldest data dropped first) and serves its web viewer over
 HTTP (``--web-port``), both on 127.0.0.1 only; the address to open is printed as
 ``view: http://...``. A live view logs only while a viewer is connected to its server
-(:func:`viewer_connected`, checked twice a second). It subscribes at start (so ``sonar_stack``
+(:func:`viewer_connected`, checked ten times a second). It subscribes at start (so ``sonar_stack``
 and the simulator, which wait for their listeners, count it), takes its messages serialized and
 drops them while no viewer is connected, and once the pipeline runs unsubscribes until one
 connects, so that without a browser it costs the pipeline nothing (``sonar_eval bench view``);
@@ -209,7 +209,7 @@ def _show_live(scene, rec, url: str | None, ros_args: list[str], qos: str, gate:
                 self._subscribe()
                 self.create_timer(10.0, self._report)
                 if gate is not None:
-                    self.create_timer(0.5, self._check_viewer)
+                    self.create_timer(0.1, self._check_viewer)
                 self.get_logger().info(f'listening in namespace {self.get_namespace()!r} to '
                                        f'{len(self.subs)} topics')
                 if url is not None:
