@@ -36,13 +36,13 @@ help:
 
 venv: $(STAMP)
 
-$(STAMP): requirements.txt requirements-test.txt setup.py package.xml
+$(STAMP): requirements.txt requirements-test.txt requirements-cluster.txt setup.py package.xml
 	@test -n "$(PYTHON)" || { echo "error: need Python 3.10, 3.11 or 3.12 (the ROS 2 Jazzy wheels' range); set PYTHON=..." >&2; exit 1; }
 	@echo "==> creating $(VENV) with $$($(PYTHON) --version)$(if $(ROS_SOURCED), on the sourced ROS installation, with the ROS 2 Jazzy wheels)"
 	rm -rf $(VENV)
 	$(PYTHON) -m venv $(if $(ROS_SOURCED),--system-site-packages) $(VENV)
 	$(VPY) -m pip install --quiet --upgrade pip
-	$(VPY) -m pip install --quiet $(if $(ROS_SOURCED),,$(ROS_WHEELS)) -r requirements.txt -r requirements-test.txt
+	$(VPY) -m pip install --quiet $(if $(ROS_SOURCED),,$(ROS_WHEELS)) -r requirements.txt -r requirements-test.txt -r requirements-cluster.txt
 	$(VPY) -m pip install --quiet --no-deps -e .
 	touch $@
 

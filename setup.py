@@ -13,11 +13,13 @@ CONSOLE_SCRIPTS = [
     'imm_ipda_tracker = sonar_tracking.nodes.imm_ipda_tracker:main',
     'fls_features = sonar_tracking.nodes.fls_features:main',
     'gpf_tracker = sonar_tracking.nodes.gpf_tracker:main',
+    'projected_sonar_adapter = sonar_tracking.nodes.projected_sonar_adapter:main',
     'sonar_eval = sonar_tracking.tools.sonar_eval:main',
     'sonar_stack = sonar_tracking.tools.sonar_stack:main',
     'sonar_echo = sonar_tracking.tools.sonar_echo:main',
     'bag_record = sonar_tracking.tools.bag_record:main',
     'bag_replay = sonar_tracking.tools.bag_replay:main',
+    'sonar_import = sonar_tracking.tools.sonar_import:main',
     'sonar_view = sonar_tracking.tools.sonar_view:main',
 ]
 
@@ -30,6 +32,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', sorted(glob('config/*.yaml'))),
+        ('share/' + PACKAGE + '/config/sensors', sorted(glob('config/sensors/*.yaml'))),
     ],
     install_requires=['setuptools'],
     zip_safe=False,

@@ -27,8 +27,7 @@ __all__ = ['grid_to_map_info', 'map_info_to_grid', 'fls_image', 'MIN_RESOLUTION'
 
 #: Physical bounds of an FLS image grid (a millimetre to 100 m pixels; at most MAX_CELLS pixels).
 MIN_RESOLUTION, MAX_RESOLUTION = 1e-3, 100.0
-#: Filtering leaves round-off below zero (-1.5e-15 seen); anything further below is a bad image.
-_ROUND_OFF = 1e-6
+
 
 
 def grid_to_map_info(grid: ImageGrid, stamp_ns: int, types: MessageTypes | None = None) -> Any:
@@ -71,8 +70,9 @@ def map_info_to_grid(msg: Any) -> ImageGrid:
 
 
 def fls_image(msg: Any, grid_shape: tuple[int, int]) -> np.ndarray:
-    """The ``fls/image`` of a frame as float32 (round-off negatives clipped to 0), or AdapterError
-    saying what is wrong with it."""
+    """The ``fls/image`` of a frame as a float32 array of its grid's shape, or AdapterError saying
+    what is wrong with the message (encoding, size, NaN). Negative values are the tracker's to judge
+    (``core.gpf.check_image``: round-off is read as 0, more is refused)."""
     image = image_to_array(msg)
     if image.dtype != np.float32:
         raise AdapterError(f'fls/image must be 32FC1 (processed intensity), got {image.dtype}')
@@ -82,7 +82,4 @@ def fls_image(msg: Any, grid_shape: tuple[int, int]) -> np.ndarray:
     bad = ~np.isfinite(image)
     if bad.any():
         raise AdapterError(f'fls/image has {int(bad.sum())} NaN or infinite pixels; no-data pixels must be 0')
-    negative = image < -_ROUND_OFF
-    if negative.any():
-        raise AdapterError(f'fls/image has {int(negative.sum())} negative pixels; intensities are >= 0')
-    return np.maximum(image, 0.0, dtype=np.float32)
+    return image

@@ -82,7 +82,7 @@ import numpy as np
 from .config import Config, ConfigError, setting
 from .sector import SectorGeometry
 
-__all__ = ['StructureConfig', 'echo_shapes', 'is_structure_shape', 'PolarBackground', 'GridBackground',
+__all__ = ['WarmUp', 'StructureConfig', 'echo_shapes', 'is_structure_shape', 'PolarBackground', 'GridBackground',
            'SectorBackground', 'vetoed_groups']
 
 _FORGET = 3.0          # a cell unseen for this many time constants starts afresh (5 % weight left)
@@ -102,6 +102,9 @@ class StructureConfig(Config):
     min_echo_time: float = setting(7.5, 'a map cell is persistent only after echoing this long in all; moving '
                                    'targets are safe while (echo length + cell) / speed is shorter', unit='s',
                                    low=0.0, high=1e6)
+    warmup: bool = setting(True, 'output no detections or regions until the background has learnt for '
+                           'min_echo_time after a start or reset: structure in view from the first ping cannot be '
+                           'told from a target before that')
     veto_fraction: float = setting(0.5, 'an echo is vetoed when at least this fraction of its cells lie on '
                                    'persistent map cells', low=0.0, low_open=True, high=1.0)
     margin: int = setting(1, 'a cell within this many map cells of a persistent cell counts as persistent (the '
@@ -331,6 +334,25 @@ class PolarBackground:
         """Persistent cells of a whole sector (bins x beams, bool), for inspection and plots."""
         rows, beams = np.indices(geometry.shape)
         return self.persistent(rows.ravel(), beams.ravel(), geometry, t).reshape(geometry.shape)
+
+
+class WarmUp:
+    """When the background started learning; echoes are held back while it is younger than
+    ``min_echo_time`` (``warmup``), since until then structure cannot be told from a target."""
+
+    def __init__(self) -> None:
+        self.start: float | None = None
+
+    def reset(self) -> None:
+        self.start = None
+
+    def holding(self, t: float, config: StructureConfig) -> bool:
+        """Whether output at time ``t`` is held back."""
+        if not (config.enabled and config.warmup and config.persistence_veto):
+            return False
+        if self.start is None or t < self.start:
+            self.start = t
+        return t - self.start < config.min_echo_time
 
 
 class GridBackground:

@@ -44,6 +44,12 @@ class DetectorNodeConfig(DetectorConfig, SectorInputConfig):
     world_frame: str = setting('world', 'frame of detections', read_only=True)
 
 
+def detector_config(config: DetectorNodeConfig, enabled: bool | None = None) -> DetectorConfig:
+    """The detector's own settings out of the node's (``esc.enabled`` replaced when given)."""
+    core = DetectorConfig(**{f.name: getattr(config, f.name) for f in dataclasses.fields(DetectorConfig)})
+    return core if enabled is None else dataclasses.replace(core, esc=dataclasses.replace(core.esc, enabled=enabled))
+
+
 def resolve_desired_density(config: DetectorConfig) -> float:
     """rho_D: the parameter, or the desired-density table at ``esc.snr_db`` when it is 0."""
     if config.esc.desired_clutter_density > 0:
@@ -61,7 +67,7 @@ class ActiveDetectorNode(SonarNode):
     def __init__(self, **kwargs) -> None:
         super().__init__('active_detector', DetectorNodeConfig(), 'active_detector: detection',
                          check=resolve_desired_density, **kwargs)
-        self.detector = ActiveDetector(self.config, resolve_desired_density(self.config))
+        self.detector = ActiveDetector(detector_config(self.config), resolve_desired_density(self.config))
         self.best_track: tuple[float, float] | None = None
         self.input = SectorInput(self, self._process, self._on_reset)
         self.subscribe(PointCloud2, 'tracks', self._on_tracks, 10)
@@ -76,14 +82,15 @@ class ActiveDetectorNode(SonarNode):
                                f'desired clutter density {self.detector.desired_density:.3g} /m^2')
 
     def on_change(self, old: DetectorNodeConfig, new: DetectorNodeConfig) -> None:
-        def algorithm(c: DetectorNodeConfig) -> tuple:
-            return tuple(dataclasses.replace(c.esc, enabled=True) if f.name == 'esc' else getattr(c, f.name)
-                         for f in dataclasses.fields(DetectorConfig))
-
-        if algorithm(old) != algorithm(new):
-            self.detector = ActiveDetector(new, resolve_desired_density(new))
-            self.pub_threshold.publish(Float64(data=self.detector.threshold))
-            self.get_logger().info(f'detector parameters changed: restarted from threshold {self.detector.threshold:g}')
+        core = detector_config(new, enabled=self.detector.config.esc.enabled)
+        if core != self.detector.config:            # more than the ESC on/off switch
+            try:
+                self.detector.reconfigure(core)     # intensity, structure, max_detections: ESC goes on
+            except ValueError:
+                self.detector = ActiveDetector(core, resolve_desired_density(core))
+                self.pub_threshold.publish(Float64(data=self.detector.threshold))
+                self.get_logger().info(f'detector parameters changed: restarted from threshold '
+                                       f'{self.detector.threshold:g}')
         self.detector.enabled = new.esc.enabled
 
     # -- inputs ------------------------------------------------------------------------------
@@ -110,7 +117,7 @@ class ActiveDetectorNode(SonarNode):
         started = time.perf_counter()
         focus = self.best_track if self.config.esc.density_source == 'best_track' else None
         try:
-            result = self.detector.process(amplitudes, geometry, pose, focus)
+            result = self.detector.process(amplitudes, geometry, pose, focus, stamp=stamp / 1e9)
         except DetectionInputError as exc:
             self.say('error', f'sector at {stamp / 1e9:.3f} s dropped: {exc}', 'bad_values')
             return False
@@ -122,7 +129,9 @@ class ActiveDetectorNode(SonarNode):
                             'next_threshold': f'{result.next_threshold:.4f}',
                             'clutter_density': f'{result.mean_density:.4g}',
                             'desired_clutter_density': f'{self.detector.desired_density:.4g}',
-                            'detections': str(len(result.detections)), 'esc': 'on' if self.detector.enabled else 'off',
+                            'detections': str(len(result.detections)), 'found': str(result.found),
+                            'structure': str(result.structure), 'cut_max_detections': str(result.cut),
+                            'esc': 'on' if self.detector.enabled else 'off',
                             'odometry': 'yes' if self.input.has_odometry else 'no (sonar_pose)'}
         return True
 

@@ -54,11 +54,11 @@ class FlsNodeConfig(FlsConfig, SectorInputConfig):
 class FlsFeaturesNode(SonarNode):
     """Runs an :class:`FlsProcessor` on paired sectors and publishes its frames."""
 
-    #: Settings that may change while running (the rest only at start-up).
-    READ_ONLY = {'frame', 'world_frame', 'max_pending', 'image.resolution'}
+    #: Start-up only here, beyond the settings declared read-only (the image grid is built once).
+    READ_ONLY = {'image.resolution'}
 
     def __init__(self, **kwargs) -> None:
-        mutable = {s.name for s in FlsNodeConfig.settings()} - self.READ_ONLY
+        mutable = {s.name for s in FlsNodeConfig.settings() if not s.read_only} - self.READ_ONLY
         super().__init__('fls_features', FlsNodeConfig(), 'fls_features: segmentation', mutable=mutable, **kwargs)
         self.processor = FlsProcessor(self.config)
         self._ns_of: OrderedDict[float, int] = OrderedDict()
@@ -111,7 +111,7 @@ class FlsFeaturesNode(SonarNode):
         self.pub_regions.publish(ma.array_to_cloud(frame.regions, stamp_ns=stamp_ns, frame_id=self._frame_id))
         self.frames += 1
         self.diag.values = {
-            'frames': str(self.frames), 'regions': str(len(frame.regions)),
+            'frames': str(self.frames), 'regions': str(len(frame.regions)), 'structure': str(frame.structure),
             'image': f'{frame.grid.width} x {frame.grid.height} px at {frame.grid.resolution:g} m',
             'sectors_in_frame': str(frame.sectors), 'background_db': f'{frame.background_db:.2f}',
             'odometry': 'yes' if self.input.has_odometry else 'no (sonar_pose)',

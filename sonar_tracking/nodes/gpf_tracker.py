@@ -66,12 +66,10 @@ class GpfNodeConfig(GpfConfig, InputConfig, PoseConfig, TrackOutputConfig):
 class GpfTrackerNode(SonarNode):
     """Runs a :class:`~sonar_tracking.core.gpf.GpfTracker` on FLS frames."""
 
-    READ_ONLY = {'world_frame', 'seed', 'max_pending', 'input_qos'}
     PARTS = ('image', 'info', 'regions')
 
     def __init__(self, **kwargs) -> None:
-        mutable = {s.name for s in GpfNodeConfig.settings()} - self.READ_ONLY
-        super().__init__('gpf_tracker', GpfNodeConfig(), 'gpf_tracker: tracking', mutable=mutable, **kwargs)
+        super().__init__('gpf_tracker', GpfNodeConfig(), 'gpf_tracker: tracking', **kwargs)
         self.tracker = GpfTracker(self.config, np.random.default_rng(self.config.seed),
                                   feature_config=self.config.features)
         self.frames = ma.StampPairer(self.PARTS, self.config.max_pending)
@@ -142,6 +140,9 @@ class GpfTrackerNode(SonarNode):
             self.say('error', f'{where} dropped: {exc}', 'malformed')
             return
         rep = self.tracker.report
+        if rep.window_capped:
+            self.say('warning', f'cues.window is more than 41 pixels of {rep.cue_pixel:g} m: windows cut to 41; set '
+                     'cues.pixel > 0')
         if rep.bad_regions:
             self.say('warning', f'{where}: {rep.bad_regions} regions without a finite position ignored')
         self.time.accept(stamp)
@@ -154,6 +155,8 @@ class GpfTrackerNode(SonarNode):
             'seen': str(rep.seen), 'missed': str(rep.missed), 'refound': str(rep.reseeded),
             'fusion_mf': str(rep.mf), 'fusion_wf': str(rep.wf), 'empty_image': str(rep.empty_image),
             'resets_total': str(self.resets), 'odometry': 'yes' if self.pose.has_odometry else 'no (sonar_pose)',
+            'outside': str(rep.outside), 'ended_outside': str(rep.ended_outside),
+            'window_px': str(rep.window_pixels), 'cue_pixel_m': f'{rep.cue_pixel:g}',
         } | {f'{k}_ms': f'{1e3 * v:.2f}' for k, v in rep.seconds.items()}
 
 

@@ -84,8 +84,7 @@ class SectorInput:
     def _accept(self, pair: ma.SectorPair) -> None:
         try:
             amplitudes, geometry = ma.sector_from_messages(pair.image, pair.info)
-            intensity = getattr(self.node.config, 'intensity', None)
-            check_sector(amplitudes, geometry, intensity.coding if intensity is not None else 'linear_amplitude')
+            check_sector(amplitudes, geometry, self.node.config.intensity.coding)
         except (ma.AdapterError, SectorError) as exc:
             self.node.say('error', f'sector at {pair.stamp_ns / 1e9:.3f} s dropped: {exc}', 'malformed')
             return

@@ -27,11 +27,13 @@ class TruncatedBagWarning(UserWarning):
 
 @dataclass(frozen=True)
 class BagTopic:
-    """A recorded topic: name, ROS type, offered QoS profiles (rosbags ``Qos`` records)."""
+    """A recorded topic: name, ROS type, offered QoS profiles (rosbags ``Qos`` records), and the
+    message definition text the bag carries for its type ('' if none)."""
 
     name: str
     msgtype: str
     qos: tuple = ()
+    msgdef: str = ''
 
 
 @dataclass(frozen=True)
@@ -54,7 +56,8 @@ def bag_topics(path: str | Path) -> list[BagTopic]:
     path = Path(path)
     try:
         with _reader(path) as reader:
-            return [BagTopic(c.topic, c.msgtype, tuple(c.ext.offered_qos_profiles)) for c in reader.connections]
+            return [BagTopic(c.topic, c.msgtype, tuple(c.ext.offered_qos_profiles), c.msgdef.data or '')
+                    for c in reader.connections]
     except ReaderError:
         topics, _ = _salvage(path, with_messages=False)
         return list(topics.values())
@@ -131,10 +134,12 @@ def _scan(data: bytes, pos: int, schemas: dict, channels: dict, messages: list, 
                 _partial_chunk(data[body:end], schemas, channels, messages, get_qos, with_messages)
             return pos
         rec = data[body:body + size]
-        if op == 0x03:  # Schema
+        if op == 0x03:  # Schema: id, name, encoding, data
             (sid,) = struct.unpack_from('<H', rec, 0)
-            name, _ = _string(rec, 2)
-            schemas[sid] = name
+            name, off = _string(rec, 2)
+            _, off = _string(rec, off)
+            (dlen,) = struct.unpack_from('<I', rec, off)
+            schemas[sid] = (name, bytes(rec[off + 4:off + 4 + dlen]).decode('utf8', 'replace'))
         elif op == 0x04:  # Channel
             cid, sid = struct.unpack_from('<HH', rec, 0)
             topic, off = _string(rec, 4)
@@ -145,7 +150,8 @@ def _scan(data: bytes, pos: int, schemas: dict, channels: dict, messages: list, 
                 qos = tuple(get_qos(meta))
             except Exception:  # noqa: BLE001 - a damaged QoS entry should not lose the channel
                 qos = ()
-            channels[cid] = BagTopic(topic, schemas.get(sid, ''), qos)
+            name, text = schemas.get(sid, ('', ''))
+            channels[cid] = BagTopic(topic, name, qos, text)
         elif op == 0x05 and with_messages:  # Message
             cid, _, log_time, _ = struct.unpack_from('<HIQQ', rec, 0)
             if cid in channels:

@@ -1,7 +1,8 @@
 """``sonar_eval scenario1 | scenario2 | desired-density``: the ESC paper's simulations (§4-§5).
 
 Each command is ``add_*_arguments(parser)`` + ``main_*(args) -> int``, wired in ``sonar_eval``.
-Runs spread over ``--jobs`` processes; the results depend only on ``--seed``.
+Runs spread over ``--jobs`` processes or a Dask cluster (``--cluster``); the results depend only on
+``--seed``.
 """
 from __future__ import annotations
 
@@ -17,7 +18,8 @@ import yaml
 
 from sonar_tracking.core.eval import algorithm1
 from sonar_tracking.core.eval.esc_study import PAPER_DESIRED_DENSITY, StudyConfig, parse_methods, run_once, summarise
-from sonar_tracking.core.eval.montecarlo import Progress, default_jobs, run_monte_carlo
+from sonar_tracking.core.eval.montecarlo import ClusterUnavailable, Progress, add_pool_arguments, pool_from_args, \
+    run_monte_carlo
 
 from ._output import write_json, write_plot
 
@@ -43,7 +45,7 @@ def add_scenario_arguments(parser, scenario: str) -> None:
     parser.add_argument('--snr-db', type=float, default=8.0)
     parser.add_argument('--confirm', type=float, default=None,
                         help='the tracker\'s confirmation threshold T_c (default: the tracker\'s, 0.98)')
-    parser.add_argument('--jobs', type=int, default=default_jobs(), help='processes (default: all cores)')
+    add_pool_arguments(parser)
     parser.add_argument('--json', type=Path, default=None, help='write the results here')
     parser.add_argument('--plot', type=Path, default=None, help='write a PNG in the style of the paper\'s figures')
     parser.set_defaults(scenario=scenario)
@@ -63,7 +65,14 @@ def main_scenario(args) -> int:
                         desired_density=args.desired_density, snr_db=args.snr_db, methods=methods,
                         confirm=args.confirm)
     t0 = time.monotonic()
-    runs = run_monte_carlo(run_once, study, args.runs, args.seed, args.jobs, Progress(args.scenario, args.runs))
+    try:
+        with pool_from_args(args) as pool:
+            runs = run_monte_carlo(run_once, study, args.runs, args.seed, progress=Progress(args.scenario, args.runs),
+                                   pool=pool)
+            where = pool.describe()
+    except ClusterUnavailable as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     wall = time.monotonic() - t0
     result = {'scenario': args.scenario, 'runs': args.runs, 'scans': args.scans, 'seed': args.seed,
               'confirm': args.confirm, 'tau0': args.tau0,
@@ -72,7 +81,7 @@ def main_scenario(args) -> int:
     if args.scenario == 'scenario1':
         result['lam'] = args.lam
     half = args.scans // 2
-    print(f'{args.scenario}: {args.runs} runs x {args.scans} scans in {wall:.1f} s on {args.jobs} processes')
+    print(f'{args.scenario}: {args.runs} runs x {args.scans} scans in {wall:.1f} s on {where}')
     print(f'{"method":10s}{"CTTR 2nd half":>15s}{"RMSE 2nd half":>15s}{"final tau":>11s}{"CFT rate":>10s}')
     for name, m in result['methods'].items():
         rmse = [v for v in m['rmse'][half:] if v is not None]
@@ -124,7 +133,7 @@ def add_desired_density_arguments(parser) -> None:
     parser.add_argument('--rho-max', type=float, default=5e-4)
     parser.add_argument('--cft-target', type=float, default=0.005)
     parser.add_argument('--seed', type=int, default=0)
-    parser.add_argument('--jobs', type=int, default=default_jobs())
+    add_pool_arguments(parser)
     parser.add_argument('--json', type=Path, default=None, help='write every candidate\'s figures here')
     parser.add_argument('--table', type=Path, default=None, help='write the desired-density table (YAML) here')
 
@@ -136,27 +145,17 @@ def main_desired_density(args) -> int:
         return 2
     t0 = time.monotonic()
     entries, details = [], []
-    for snr in args.snr_db:
-        cfg = algorithm1.Algorithm1Config(snr_db=snr, models=args.models, scans=args.scans, pd_step=args.pd_step,
-                                          rho_min=args.rho_min, rho_max=args.rho_max, cft_target=args.cft_target)
-        cands = algorithm1.candidates(cfg)
-        if not cands:
-            print(f'SNR {snr:g} dB: no P_D gives a density inside ({args.rho_min:g}, {args.rho_max:g})', file=sys.stderr)
-            return 1
-        progress = Progress(f'SNR {snr:g} dB', len(cands) * args.runs)
-        results = {}
-        for pd, rho in cands:
-            # The same seeds for every candidate (common random numbers): the candidates' nCTT differ
-            # by their (P_D, rho), not by independent noise.
-            results[(pd, rho)] = run_monte_carlo(algorithm1.run_candidate, (cfg, pd, rho), args.runs, args.seed,
-                                                 args.jobs, progress)
-        best = algorithm1.choose(cfg, results)
-        print(f'SNR {snr:g} dB: rho_D = {best["desired_clutter_density"]:.3g} /m^2 ({best["method"]}; raw argmax '
-              f'{best["raw_argmax_density"]:.3g}) at P_D {best["pd"]:.2f}, T_c {best["t_c"]}, nCTT {best["n_ctt"]} '
-              f'of {args.runs * args.scans}')
-        entries.append({'snr_db': snr, 'desired_clutter_density': float(best['desired_clutter_density']),
-                        'pd': best['pd'], 't_c': best['t_c']})
-        details.append({'snr_db': snr, 'v_rc': cfg.v_rc, **best})
+    try:
+        with pool_from_args(args) as pool:
+            for snr in args.snr_db:
+                entry = _desired_density(args, snr, pool)
+                if entry is None:
+                    return 1
+                entries.append(entry[0])
+                details.append(entry[1])
+    except ClusterUnavailable as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     wall = time.monotonic() - t0
     command = 'sonar_eval desired-density ' + ' '.join(shlex.quote(a) for a in sys.argv[2:]) if len(sys.argv) > 2 \
         else 'sonar_eval desired-density'
@@ -171,4 +170,60 @@ def main_desired_density(args) -> int:
         args.table.parent.mkdir(parents=True, exist_ok=True)
         args.table.write_text(header + yaml.safe_dump({'models': args.models, 'entries': entries}, sort_keys=False))
         print(f'wrote {args.table}')
+    return 0
+
+
+def _desired_density(args, snr: float, pool) -> tuple[dict, dict] | None:
+    """Algorithm 1 at one SNR: the table entry and the details, or None (reason printed)."""
+    cfg = algorithm1.Algorithm1Config(snr_db=snr, models=args.models, scans=args.scans, pd_step=args.pd_step,
+                                      rho_min=args.rho_min, rho_max=args.rho_max, cft_target=args.cft_target)
+    cands = algorithm1.candidates(cfg)
+    if not cands:
+        print(f'SNR {snr:g} dB: no P_D gives a density inside ({args.rho_min:g}, {args.rho_max:g})', file=sys.stderr)
+        return None
+    progress = Progress(f'SNR {snr:g} dB', len(cands) * args.runs)
+    results = {}
+    for pd, rho in cands:
+        # The same seeds for every candidate (common random numbers): the candidates' nCTT differ
+        # by their (P_D, rho), not by independent noise.
+        results[(pd, rho)] = run_monte_carlo(algorithm1.run_candidate, (cfg, pd, rho), args.runs, args.seed,
+                                             progress=progress, pool=pool)
+    best = algorithm1.choose(cfg, results)
+    print(f'SNR {snr:g} dB: rho_D = {best["desired_clutter_density"]:.3g} /m^2 ({best["method"]}; raw argmax '
+          f'{best["raw_argmax_density"]:.3g}) at P_D {best["pd"]:.2f}, T_c {best["t_c"]}, nCTT {best["n_ctt"]} '
+          f'of {args.runs * args.scans}')
+    return ({'snr_db': snr, 'desired_clutter_density': float(best['desired_clutter_density']),
+             'pd': best['pd'], 't_c': best['t_c']}, {'snr_db': snr, 'v_rc': cfg.v_rc, **best})
+
+
+def add_table_arguments(parser) -> None:
+    """Arguments of ``sonar_eval esc-table``."""
+    parser.add_argument('--runs', type=int, default=500, help='Monte Carlo runs per study (paper: 500)')
+    parser.add_argument('--seed', type=int, default=1)
+    parser.add_argument('--scans', type=int, default=0, help='scans per run, 0 = the paper\'s (50, 100)')
+    parser.add_argument('--cft-target', type=float, default=0.005,
+                        help='rate of CFT scans (Table 1) that sets T_c per method (default 0.005)')
+    add_pool_arguments(parser)
+    parser.add_argument('--json', type=Path, default=None, help='write the results here')
+
+
+def main_table(args) -> int:
+    """Run the ESC comparison at the paper's operating point; print the README table."""
+    from sonar_tracking.core.eval.esc_table import format_table, run_table
+    if args.runs < 2 or args.jobs < 1 or (args.scans and args.scans < 4) or not 0 < args.cft_target < 1:
+        print('error: need --runs >= 2, --jobs >= 1, --scans 0 or >= 4 and 0 < --cft-target < 1', file=sys.stderr)
+        return 2
+    t0 = time.monotonic()
+    try:
+        with pool_from_args(args) as pool:
+            result = run_table(args.runs, args.seed, pool, args.scans or None, args.cft_target)
+            where = pool.describe()
+    except ClusterUnavailable as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    result['wall_s'] = time.monotonic() - t0
+    print(f'esc-table: {time.monotonic() - t0:.0f} s on {where}')
+    print(format_table(result))
+    if args.json:
+        write_json(args.json, result)
     return 0

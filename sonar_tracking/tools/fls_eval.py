@@ -3,9 +3,9 @@
 ``sonar_eval fls --situation N --runs R --seed S --methods af,mf,wf,ekf,pf --json FILE [--plot FILE.png]``
 runs situation N (1-14) of Table 5 (static SeaKing 675 kHz in a tank, 300 particles, §5.1), or with
 ``--preset sea-trial`` the sea trial of §5.2 (AUV at 0.5 m/s, towed targets with current
-disturbance, 200 particles, §5.2.1), R times over ``--jobs`` processes
-(:func:`~sonar_tracking.core.eval.montecarlo.run_monte_carlo`: the results depend only on
-``--seed``). Every run simulates the frames once and gives the same frames to every method
+disturbance, 200 particles, §5.2.1), R times over ``--jobs`` processes or a Dask cluster
+(``--cluster``; :func:`~sonar_tracking.core.eval.montecarlo.run_monte_carlo`: the results depend only
+on ``--seed``). Every run simulates the frames once and gives the same frames to every method
 (:mod:`sonar_tracking.core.eval.fls_study`): GPF with adaptive (af), multiplicative (mf) or
 weighted (wf) fusion, the SIR particle filter (pf) and the EKF on the regions (ekf).
 
@@ -18,7 +18,6 @@ trajectories and CLE curves per target in the style of Figures 13, 16 and 19.
 """
 from __future__ import annotations
 
-import math
 import sys
 import time
 from pathlib import Path
@@ -40,7 +39,7 @@ SEA_TRIAL_SETTINGS = {'particles': 200, 'birth.sigma_speed': 0.8, 'motion.noise'
 def add_arguments(parser: Any) -> None:
     """Arguments of ``sonar_eval fls``."""
     from sonar_tracking.core.eval.fls_study import METHODS
-    from sonar_tracking.core.eval.montecarlo import default_jobs
+    from sonar_tracking.core.eval.montecarlo import add_pool_arguments
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument('--situation', type=int, choices=range(1, 15), metavar='N',
                        help='FLS paper Table 5 situation 1-14 (tank, static sonar)')
@@ -52,7 +51,7 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument('--particles', type=int, default=None, help='particles per track (default 300, sea trial 200)')
     parser.add_argument('--sensor', choices=('seaking675', 'seaking325'), default='seaking675',
                         help='SeaKing model (default seaking675)')
-    parser.add_argument('--jobs', type=int, default=default_jobs(), help='processes (default: all cores)')
+    add_pool_arguments(parser)
     parser.add_argument('--json', type=Path, required=True, help='write the results to this JSON file')
     parser.add_argument('--plot', type=Path, default=None, help='also draw trajectories and CLE curves to this PNG')
 
@@ -69,12 +68,13 @@ def study_for(situation: int | None, preset: str | None, methods: tuple[str, ...
     return FlsStudy(scenario, methods=methods, config=GpfConfig.from_flat(flat), preset=sensor)
 
 
-def run_study(study, runs: int, seed: int, jobs: int = 1, progress=None) -> dict:
-    """Run ``study`` ``runs`` times; the JSON-ready result (module docstring)."""
+def run_study(study, runs: int, seed: int, jobs: int = 1, progress=None, pool=None) -> dict:
+    """Run ``study`` ``runs`` times (on ``pool``, else over ``jobs`` processes); the JSON-ready result
+    (module docstring)."""
     from sonar_tracking.core.eval.fls_study import run_once, summarise
     from sonar_tracking.core.eval.montecarlo import run_monte_carlo
     t0 = time.perf_counter()
-    results = run_monte_carlo(run_once, study, runs, seed, jobs, progress)
+    results = run_monte_carlo(run_once, study, runs, seed, jobs, progress, pool)
     wall = time.perf_counter() - t0
     first = results[0]
     return {
@@ -166,7 +166,7 @@ def _paired(p: dict | None) -> str:
 def main_args(args: Any) -> int:
     """Run ``sonar_eval fls`` with parsed arguments; returns the exit status."""
     from sonar_tracking.core.eval.fls_study import parse_methods
-    from sonar_tracking.core.eval.montecarlo import Progress
+    from sonar_tracking.core.eval.montecarlo import ClusterUnavailable, Progress, pool_from_args
     try:
         methods = parse_methods(args.methods)
     except ValueError as exc:
@@ -180,9 +180,15 @@ def main_args(args: Any) -> int:
         return 2
     study = study_for(args.situation, args.preset, methods, args.particles, args.sensor)
     label = args.preset or f'situation {args.situation}'
-    result = run_study(study, args.runs, args.seed, args.jobs, Progress(label, args.runs))
+    try:
+        with pool_from_args(args) as pool:
+            result = run_study(study, args.runs, args.seed, args.jobs, Progress(label, args.runs), pool)
+            where = pool.describe()
+    except ClusterUnavailable as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     result['situation'] = args.preset or args.situation
-    print(f'{label} ({study.scenario}): {args.runs} runs in {result["wall_s"]:.1f} s on {args.jobs} processes')
+    print(f'{label} ({study.scenario}): {args.runs} runs in {result["wall_s"]:.1f} s on {where}')
     ids = result['target_ids']
     head = ''.join(f'{"CLE t" + str(i):>10s}{"lost t" + str(i):>9s}' for i in ids)
     first = methods[0]

@@ -1,26 +1,15 @@
 """``sonar_eval select-features``: GRNN wrapper feature selection by SFS or SBS (FLS paper §3.2-§3.4).
 
-Each run simulates the FLS paper's tank situations (Table 5: the pontoon, cube, triangular prism,
-reflector and sphere of §3.4, alone, side by side and crossing) with its own seed, processes the
-sweeps with the ``fls_features`` pipeline and labels every region with the shape of the target it
-lies on, or ``clutter``. The frames are split three ways (half for training, a quarter for
-validation, a quarter for testing, whole frames each so neighbouring regions do not leak between
-sets). SFS or SBS (Tables 3-4) searches the 30 features of Table 2 with the GRNN of eq. (4):
-trained on the training regions, judged by its balanced error on the validation regions. Each
-subset along the path is then retrained on training + validation and its error measured on the
-test regions: the error against the number of features (the paper's Figure 6). The runs are
-summarised as in Figures 7-9 and Table 7: the mean and spread of the error per subset size, how
-often each feature is among the first five selected, and the five most frequent against the
-paper's (20, 17, 3, 6, 24).
-
-The regions are segmented with a seed threshold ``--seed-db`` below the node's default, so that
-enough clutter regions exist to learn the clutter class (at the default almost none are found).
+The command line of :mod:`sonar_tracking.core.eval.feature_selection` (the study: simulated tank
+situations, regions labelled by shape, SFS or SBS with the GRNN, error against the number of
+features and the most frequent first five against the paper's): arguments, the summary printed,
+the JSON and the plot (Figures 6 and 9 style). Runs spread over ``--jobs`` processes or a Dask
+cluster (``--cluster``); the results depend only on ``--seed``.
 """
 from __future__ import annotations
 
 import math
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
@@ -28,13 +17,12 @@ import numpy as np
 
 from ._output import write_json, write_plot
 
-__all__ = ['add_arguments', 'main_args', 'run_selection']
-
-SITUATIONS = tuple(range(1, 15))
+__all__ = ['add_arguments', 'main_args', 'plot']
 
 
 def add_arguments(parser: Any) -> None:
     """Arguments of ``sonar_eval select-features``."""
+    from sonar_tracking.core.eval.montecarlo import add_pool_arguments
     parser.add_argument('--method', choices=('sfs', 'sbs'), default='sfs',
                         help='sequential forward (Table 4) or backward (Table 3) selection (default sfs)')
     parser.add_argument('--runs', type=int, default=5, help='independent runs, each on freshly simulated frames '
@@ -58,6 +46,7 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument('--max-clutter-ratio', type=float, default=2.0,
                         help='keep at most this many clutter regions per region of the largest target class '
                         '(default 2)')
+    add_pool_arguments(parser)
 
 
 def _parse_situations(text: str) -> tuple[int, ...]:
@@ -74,122 +63,6 @@ def _parse_situations(text: str) -> tuple[int, ...]:
     if not out:
         raise ValueError('no situation given')
     return tuple(sorted(out))
-
-
-def _dataset(seed: int, situations: tuple[int, ...], sweeps: int, preset: str, seed_db: float):
-    from sonar_tracking.core.fls import FlsConfig
-    from sonar_tracking.core.fls.evaluation import region_dataset, simulate_frames
-    config = FlsConfig.from_flat({'segment.seed_db': seed_db, 'segment.grow_db': min(3.0, seed_db)})
-    frames = []
-    for n in situations:
-        frames += list(simulate_frames(f'fls{n}', 1000 * seed + n, config, preset=preset,
-                                       max_frames=sweeps or None))
-    return region_dataset(frames), len(frames)
-
-
-def _split(ds, rng: np.random.Generator, max_clutter_ratio: float):
-    """Train / validation / test by whole frames (1/2, 1/4, 1/4), clutter capped."""
-    frames = np.unique(ds.frame)
-    part = rng.permutation(frames.size) % 4  # 0, 1 train; 2 validation; 3 test
-    which = np.zeros(ds.frame.max() + 1, np.int64)
-    which[frames] = part
-    keep = np.ones(len(ds), bool)
-    counts = ds.counts()
-    targets = [v for k, v in counts.items() if k != 'clutter']
-    if 'clutter' in counts and targets:
-        cap = int(max_clutter_ratio * max(targets))
-        clutter = np.flatnonzero(ds.labels == 'clutter')
-        if clutter.size > cap:
-            keep[rng.choice(clutter, clutter.size - cap, replace=False)] = False
-    sets = which[ds.frame]
-    return (ds.subset(keep & (sets <= 1)), ds.subset(keep & (sets == 2)), ds.subset(keep & (sets == 3)),
-            ds.subset(keep))
-
-
-def _test_error(train, test, subset: tuple[int, ...], sigma: float) -> float:
-    from sonar_tracking.core.fls.grnn import GRNN, balanced_error
-    cols = [f - 1 for f in subset]
-    model = GRNN(sigma).fit(train.features[:, cols], train.labels)
-    return balanced_error(test.labels, model.predict(test.features[:, cols]))
-
-
-def _confusion(train, test, subset: tuple[int, ...], sigma: float, classes: list[str]) -> list[list[int]]:
-    from sonar_tracking.core.fls.grnn import GRNN
-    cols = [f - 1 for f in subset]
-    pred = GRNN(sigma).fit(train.features[:, cols], train.labels).predict(test.features[:, cols])
-    return [[int(np.sum((test.labels == a) & (pred == b))) for b in classes] for a in classes]
-
-
-def run_selection(method: str, runs: int, seed: int = 0, situations: tuple[int, ...] = SITUATIONS, sweeps: int = 0,
-                  preset: str = 'seaking675', sigma: float = 0.1, seed_db: float = 4.0,
-                  max_clutter_ratio: float = 2.0, progress=None) -> dict:
-    """Run the selection ``runs`` times; returns the JSON-ready result (see module docstring)."""
-    from sonar_tracking.core.fls import PAPER_FEATURES
-    from sonar_tracking.core.fls.evaluation import RegionDataset
-    from sonar_tracking.core.fls.selection import GrnnWrapper, sbs, sfs
-    t0 = time.perf_counter()
-    per_run, totals = [], {}
-    n_features = 30
-    all_features = tuple(range(1, n_features + 1))
-    for r in range(runs):
-        run_seed = seed + r
-        ds, n_frames = _dataset(run_seed, situations, sweeps, preset, seed_db)
-        train, val, test, used = _split(ds, np.random.default_rng(run_seed), max_clutter_ratio)
-        if min(len(train), len(val), len(test)) == 0 or len(np.unique(train.labels)) < 2:
-            raise RuntimeError(f'run {r}: too few labelled regions ({ds.counts()}); simulate more sweeps')
-        for k, v in used.counts().items():
-            totals[k] = totals.get(k, 0) + v
-        wrapper = GrnnWrapper(train.features, train.labels, val.features, val.labels, sigma=sigma)
-        search = sfs if method == 'sfs' else sbs
-        path = search(wrapper, all_features)
-        both = RegionDataset(np.concatenate([train.features, val.features]),
-                             np.concatenate([train.labels, val.labels]), np.concatenate([train.frame, val.frame]))
-        test_err = [_test_error(both, test, s, sigma) for s in path.subsets]
-        best_k = int(np.argmin(path.errors)) + 1
-        classes = sorted(used.counts())
-        per_run.append({
-            'seed': run_seed, 'frames': n_frames, 'regions': {'train': len(train), 'validation': len(val),
-                                                              'test': len(test)},
-            'class_counts': used.counts(), 'order': path.order,
-            'subsets': [list(s) for s in path.subsets],
-            'validation_error': path.errors, 'test_error': test_err,
-            'best_k': best_k, 'best_subset': list(path.subset_of(best_k)),
-            'best_test_error': test_err[best_k - 1],
-            'top5': list(path.order[:5]), 'top5_test_error': test_err[4] if len(test_err) >= 5 else math.nan,
-            'paper_test_error': _test_error(both, test, PAPER_FEATURES, sigma),
-            'all_test_error': test_err[-1],
-            'classes': classes,
-            'confusion_top5': _confusion(both, test, path.subset_of(5), sigma, classes),
-            'evaluations': wrapper.evaluations,
-        })
-        if progress:
-            progress(f'run {r + 1}/{runs}: best {best_k} features {list(path.subset_of(best_k))}, '
-                     f'test error {test_err[best_k - 1]:.3f}; first five {path.order[:5]} '
-                     f'{test_err[4]:.3f}; paper {per_run[-1]["paper_test_error"]:.3f}')
-    test = np.array([p['test_error'] for p in per_run])
-    val = np.array([p['validation_error'] for p in per_run])
-    counts = {f: 0 for f in all_features}
-    for p in per_run:
-        for f in p['top5']:
-            counts[f] += 1
-    consensus = sorted(all_features, key=lambda f: (-counts[f], f))[:5]
-    mean_test = test.mean(axis=0)
-    summary = {
-        'mean_test_error': mean_test.tolist(), 'std_test_error': test.std(axis=0).tolist(),
-        'mean_validation_error': val.mean(axis=0).tolist(),
-        'best_k': int(np.argmin(mean_test)) + 1, 'best_mean_test_error': float(mean_test.min()),
-        'top5_counts': {str(f): c for f, c in counts.items()},
-        'consensus_top5': consensus,
-        'paper_features': list(PAPER_FEATURES),
-        'paper_test_error': float(np.mean([p['paper_test_error'] for p in per_run])),
-        'five_feature_test_error': float(mean_test[4]),
-        'all_features_test_error': float(mean_test[-1]),
-        'chance_error': 1.0 - 1.0 / max(1, len(totals)),
-        'class_counts': totals,
-    }
-    return {'method': method, 'runs': runs, 'seed': seed, 'situations': list(situations), 'preset': preset,
-            'sigma': sigma, 'seed_db': seed_db, 'per_run': per_run, 'summary': summary,
-            'wall_s': time.perf_counter() - t0}
 
 
 def plot(result: dict, path: Path) -> None:
@@ -240,13 +113,28 @@ def main_args(args: Any) -> int:
     except ValueError as exc:
         print(f'error: --situations: {exc}', file=sys.stderr)
         return 2
+    if args.jobs < 1:
+        print('error: --jobs must be >= 1', file=sys.stderr)
+        return 2
+    from sonar_tracking.core.eval.feature_selection import SelectionStudy, run_selection
+    from sonar_tracking.core.eval.montecarlo import ClusterUnavailable, Progress, pool_from_args
+    study = SelectionStudy(args.method, situations, args.sweeps, args.preset, args.sigma, args.seed_db,
+                           args.max_clutter_ratio)
     try:
-        result = run_selection(args.method, args.runs, args.seed, situations, args.sweeps, args.preset, args.sigma,
-                               args.seed_db, args.max_clutter_ratio,
-                               progress=lambda m: print(f'  {m}', file=sys.stderr))
+        with pool_from_args(args) as pool:
+            result = run_selection(study, args.runs, args.seed, pool, Progress(f'select-features {args.method}',
+                                                                             args.runs))
+    except ClusterUnavailable as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
     except RuntimeError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 1
+    for r, p in enumerate(result['per_run']):
+        e = p['test_error']
+        print(f'  run {r + 1}/{args.runs}: best {p["best_k"]} features {p["best_subset"]}, test error '
+              f'{e[p["best_k"] - 1]:.3f}; first five {p["top5"]} {e[4]:.3f}; paper {p["paper_test_error"]:.3f}',
+              file=sys.stderr)
     s = result['summary']
     print(f'{result["method"].upper()}, {result["runs"]} runs, classes {s["class_counts"]}')
     print(f'  least mean test error {s["best_mean_test_error"]:.3f} with {s["best_k"]} features '

@@ -6,7 +6,14 @@ Subcommands:
   scenario1        ESC paper Scenario 1 (§5.1): ESC against fixed thresholds, Monte Carlo
   scenario2        ESC paper Scenario 2 (§5.2): manoeuvring target, two clutter regions
   desired-density  ESC paper Algorithm 1 (§4): the desired clutter density for an SNR
+  esc-table        ESC against fixed thresholds at the paper's operating point (T_c per method for a
+                   CFT rate of 0.005), paired differences with 95 % intervals: the README table
   select-features  FLS paper §3: GRNN feature selection by SFS or SBS on simulated tank regions
+  fls              FLS paper §5: GPF, SIR and EKF tracks on Table 5 situations or the sea trial
+  structure        confirmed tracks on static structure (walls, seabed, piles, ringdown), with and
+                   without rejection, next to the structure-free scenes
+
+The Monte Carlo subcommands run over --jobs processes or a Dask cluster (--cluster).
 """
 from __future__ import annotations
 
@@ -18,7 +25,7 @@ __all__ = ['main', 'build_parser']
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand (their modules load only when run)."""
-    from . import bench, esc_eval, fls_eval, select_features, track_csv
+    from . import bench, esc_eval, fls_eval, select_features, structure_eval, track_csv
     parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].replace('``', ''),
                                      epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -37,6 +44,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser('desired-density', help='ESC paper Algorithm 1: rho_D for each SNR, and the table')
     esc_eval.add_desired_density_arguments(p)
     p.set_defaults(handler=esc_eval.main_desired_density)
+    p = sub.add_parser('esc-table', help='ESC paper: every method at T_c for a CFT rate of 0.005, paired '
+                       'differences ESC - fixed with 95 %% intervals (the README table)')
+    esc_eval.add_table_arguments(p)
+    p.set_defaults(handler=esc_eval.main_table)
     p = sub.add_parser('select-features', help='FLS paper §3: GRNN feature selection by SFS or SBS on simulated '
                        'tank regions')
     select_features.add_arguments(p)
@@ -45,6 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
                        'sea-trial preset, CLE by method')
     fls_eval.add_arguments(p)
     p.set_defaults(handler=fls_eval.main_args)
+    p = sub.add_parser('structure', help='confirmed tracks on static structure of the structured scenes, with and '
+                       'without rejection, and the targets against the structure-free twin')
+    structure_eval.add_arguments(p)
+    p.set_defaults(handler=structure_eval.main_args)
     return parser
 
 

@@ -7,13 +7,15 @@ from msg_adapters.map_info import fls_image, grid_to_map_info, map_info_to_grid
 from sonar_tracking.core.fls.grid import ImageGrid
 
 
-def test_round_off_negatives_are_clipped_and_real_negatives_refused():
+def test_the_message_rule_checks_encoding_size_and_nan():
     img = np.ones((4, 5), np.float32)
-    img[1, 1] = -1.5e-15
-    out = fls_image(ma.array_to_image(img, '32FC1'), (4, 5))
-    assert out[1, 1] == 0.0 and out.dtype == np.float32
-    img[2, 2] = -0.5
-    with pytest.raises(ma.AdapterError, match='1 negative pixels'):
+    assert fls_image(ma.array_to_image(img, '32FC1'), (4, 5)).dtype == np.float32
+    with pytest.raises(ma.AdapterError, match='32FC1'):
+        fls_image(ma.array_to_image(img.astype(np.uint8), 'mono8'), (4, 5))
+    with pytest.raises(ma.AdapterError, match='image_info says'):
+        fls_image(ma.array_to_image(img, '32FC1'), (5, 4))
+    img[1, 1] = np.nan
+    with pytest.raises(ma.AdapterError, match='NaN'):
         fls_image(ma.array_to_image(img, '32FC1'), (4, 5))
 
 

@@ -45,3 +45,34 @@ def test_desired_density_table_is_usable_by_the_detector(tmp_path):
     details = json.loads(js.read_text())['snr']
     assert [d['snr_db'] for d in details] == [6.0, 10.0] and all(d['candidates'] for d in details)
     assert yaml.safe_load(text)['models'] == 'cv'
+
+
+def test_esc_table_reduced_prints_the_table_and_keeps_its_figures_consistent(tmp_path, capsys):
+    out = tmp_path / 'table.json'
+    assert main(['esc-table', '--runs', '3', '--scans', '8', '--seed', '2', '--jobs', '1', '--json', str(out)]) == 0
+    text = capsys.readouterr().out
+    r = json.loads(out.read_text())
+    assert [s['name'] for s in r['studies']] == ['Scenario 1, lambda 1.2', 'Scenario 1, lambda 0.8', 'Scenario 2']
+    assert text.count('| Scenario 1, lambda 1.2 |') == 4 and text.count('| Scenario 2 |') == 3
+    for s in r['studies']:
+        esc = s['methods']['esc']
+        for name, m in s['methods'].items():
+            assert len(m['cttr_run']) == 3
+            assert m['cft_scan_rate'] <= m['cft_per_scan'] + 1e-12   # a CFT scan holds one or more CFTs
+            if m['meets_target']:
+                assert m['cft_scan_rate'] <= 0.005
+            if name != 'esc':
+                want = np.mean(np.subtract(esc['cttr_run'], m['cttr_run']))
+                assert m['paired_first_minus']['difference'] == pytest.approx(want)
+
+
+def test_esc_table_refuses_bad_arguments(capsys):
+    assert main(['esc-table', '--runs', '1']) == 2
+    assert '--runs >= 2' in capsys.readouterr().err
+
+
+@pytest.mark.parametrize('argv', [['--help'], ['esc-table', '--help'], ['select-features', '--help']])
+def test_help_texts_format(argv, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main(argv)
+    assert exit_.value.code == 0 and '--cluster' in capsys.readouterr().out

@@ -51,7 +51,7 @@ from ..config import Config, ConfigError, setting
 from ..intensity import IntensityConfig, condition
 from ..records import DETECTION_DTYPE
 from ..sector import GeometryError, SectorError, SectorGeometry, check_sector
-from ..structure import SectorBackground, StructureConfig, echo_shapes, is_structure_shape, vetoed_groups
+from ..structure import SectorBackground, StructureConfig, WarmUp, echo_shapes, is_structure_shape, vetoed_groups
 from .cells import CellDetections, threshold_cells
 from .conversion import convert_measurements
 from .esc import ExtremumSeekingController
@@ -160,6 +160,7 @@ class ScanResult:
     found: int = 0           # detections found before structure rejection and the max_detections cut
     structure: int = 0       # of those, dropped as static structure (shape gates or persistent echo)
     cut: int = 0             # of the rest, dropped by cells.max_detections (the weakest)
+    held: bool = False       # the structure background is warming up: no detection is output
 
 
 class ActiveDetector:
@@ -180,6 +181,7 @@ class ActiveDetector:
                                              e.dither_amplitude, e.dither_decay, e.gain)
         self._enabled = e.enabled
         self.background = SectorBackground(config.structure)
+        self.warmup = WarmUp()
         self.scans = 0
         self.last_density = math.nan
         self._clock = 0.0
@@ -213,11 +215,13 @@ class ActiveDetector:
         self.config = config
         if config.structure != old.structure:
             self.background = SectorBackground(config.structure)
+            self.warmup.reset()
 
     def reset(self) -> None:
         """Back to tau_0 and scan 0, with an empty structure background."""
         self.esc.reset()
         self.background.reset()
+        self.warmup.reset()
         self.scans = 0
         self.last_density = math.nan
         self._clock = 0.0
@@ -296,7 +300,9 @@ class ActiveDetector:
         rec['range'], rec['bearing'], rec['amplitude'] = r, b, cells.amplitude[keep]
         rec['clutter_density'] = rho
         rec['cov_xx'], rec['cov_xy'], rec['cov_yy'] = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
-        return ScanResult(rec, tau, density, self.threshold, found=found, structure=n_structure, cut=cut)
+        held = self.warmup.holding(t, cfg.structure)    # ESC and the background learn; nothing goes out
+        return ScanResult(rec[:0] if held else rec, tau, density, self.threshold, found=found,
+                          structure=n_structure, cut=cut, held=held)
 
     def _time(self, stamp: float | None, geometry: SectorGeometry) -> float:
         """The scan's time for the structure background: the stamp, or the scan count's clock."""

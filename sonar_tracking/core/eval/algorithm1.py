@@ -15,11 +15,10 @@ mean over five neighbouring candidates (fewer at the ends); the raw argmax is re
 our tracker nCTT rises as rho falls from rho_max and then levels off, a shape a fitted parabola
 would misplace.)
 
-The sweep over T_c is done after the runs, from each track's existence history: a track counts
-as confirmed at scan k for threshold T once its existence has exceeded T (confirmation is kept,
-as in the tracker). The tracker itself confirms at ``t_c_min`` during the runs; T_c only changes
-which measurements may start new tracks (those of confirmed tracks may not), so this replaces the
-paper's repeated Monte Carlo for every T_c by one run per (P_D, rho) at a small approximation.
+The sweep over T_c is done after the runs, from each track's existence history
+(:class:`~.confirmation.ConfirmationSweep`): one run per (P_D, rho) serves every T_c. The rate of
+CFT here counts confirmed false tracks per scan; Table 1's "CFT scan" rate
+(:func:`~.metrics.cft_scan_rate`) counts a scan with several once and is never larger.
 """
 from __future__ import annotations
 
@@ -35,15 +34,11 @@ from ..sim.motion import ScriptedTrajectory
 from ..sim.presets import HARBOUR_SONAR_XY
 from ..tracking.config import TrackerConfig
 from ..tracking.tracker import ImmIpdaTracker
+from .confirmation import T_GRID, ConfirmationSweep
 from .esc_study import resolution_cell_area
 from .metrics import classify_tracks
 
 __all__ = ['Algorithm1Config', 'candidates', 'run_candidate', 'choose', 'T_GRID']
-
-#: Confirmation thresholds swept (lines 7-14): 0.50 to 0.99 by 0.01, then 1 - 10^-x for x from 2 to 4
-#: by 0.1 (false tracks need T_c close to 1).
-T_GRID = np.concatenate([np.round(np.arange(0.50, 0.99, 0.01), 2), 1.0 - 10.0 ** -np.arange(2.0, 4.05, 0.1)])
-
 
 @dataclass(frozen=True)
 class Algorithm1Config:
@@ -93,7 +88,7 @@ def run_candidate(item: tuple[Algorithm1Config, float, float], seed: np.random.S
     target = ScriptedTrajectory(50.0, 200.0, 12.0 / math.sqrt(2.0), 12.0 / math.sqrt(2.0))
     sx, sy = HARBOUR_SONAR_XY
     sig_b = math.radians(cfg.sigma_theta_deg)
-    best: dict[int, float] = {}
+    sweep = ConfirmationSweep()
     has_ctt = np.zeros((cfg.scans, len(T_GRID)), bool)
     n_false = np.zeros((cfg.scans, len(T_GRID)), np.int32)
     P0 = None
@@ -115,14 +110,9 @@ def run_candidate(item: tuple[Algorithm1Config, float, float], seed: np.random.S
         tracks = trk.step(t, z, R)
         if not len(tracks):
             continue
-        ex = np.empty(len(tracks))
-        for i, (tid, e) in enumerate(zip(tracks['track_id'].tolist(), tracks['existence'].tolist())):
-            best[tid] = ex[i] = max(best.get(tid, 0.0), e)
         est = np.column_stack([tracks[f] for f in ('x', 'y', 'vx', 'vy')])
         label = classify_tracks(truth[None, :], est, P0).label
-        over = ex[:, None] > T_GRID[None, :]                                  # (tracks, T)
-        has_ctt[k] = (over & (label == 1)[:, None]).any(axis=0)
-        n_false[k] = (over & (label == -1)[:, None]).sum(axis=0)
+        has_ctt[k], n_false[k] = sweep.update(tracks['track_id'].tolist(), tracks['existence'].tolist(), label)
     return {'has_ctt': has_ctt, 'n_false': n_false}
 
 

@@ -15,6 +15,11 @@ P_fa = rho_D V_rc; the tracker then uses that operating point's P_D = (rho_D V_r
 (Algorithm 1, line 3), which holds for any lam once ESC has converged.
 
 Scenario 2's ESC measures the density near the confirmed track with the highest existence (§5.2).
+
+With ``sweep_tc`` the trackers confirm at the lowest T_c of :data:`~.confirmation.T_GRID` and each
+run also records, per scan and per T_c of the grid, whether a true track is confirmed and how many
+false ones are (:class:`~.confirmation.ConfirmationSweep`), so that T_c can be chosen per method
+after the runs (:mod:`.esc_table`).
 """
 from __future__ import annotations
 
@@ -29,7 +34,9 @@ from ..sim.amplitude import snr_linear
 from ..sim.presets import HARBOUR_SONAR_XY
 from ..tracking.config import TrackerConfig
 from ..tracking.tracker import ImmIpdaTracker
-from .metrics import confirmed_false_track_rate, confirmed_true_track_rate, evaluate_scan, position_rmse
+from .confirmation import T_GRID, ConfirmationSweep
+from .metrics import (classify_tracks, confirmed_false_track_rate, confirmed_true_track_rate, evaluate_scan,
+                      position_rmse)
 
 __all__ = ['Method', 'parse_methods', 'StudyConfig', 'run_once', 'summarise', 'resolution_cell_area', 'design_pd',
            'fixed_pd', 'PAPER_DESIRED_DENSITY']
@@ -99,6 +106,7 @@ class StudyConfig:
     sigma_r: float = 5.0
     sigma_theta_deg: float = 0.1
     confirm: float | None = None          # the tracker's T_c (None: the tracker's default)
+    sweep_tc: bool = False                # record every T_c of T_GRID (the tracker confirms at its lowest)
 
     @property
     def models(self) -> str:
@@ -112,7 +120,9 @@ class StudyConfig:
 
 def _tracker(study: StudyConfig, pd: float) -> ImmIpdaTracker:
     flat = {'imm.models': study.models, 'detection.probability': pd}
-    if study.confirm is not None:
+    if study.sweep_tc:
+        flat['existence.confirm'] = float(T_GRID[0])
+    elif study.confirm is not None:
         flat['existence.confirm'] = study.confirm
     return ImmIpdaTracker(TrackerConfig.from_flat(flat))
 
@@ -147,6 +157,10 @@ def run_once(study: StudyConfig, seed: np.random.SeedSequence) -> dict[str, dict
         k_scans = study.scans
         rec = {'has_ctt': np.zeros(k_scans, bool), 'error': np.full(k_scans, np.nan), 'threshold': np.zeros(k_scans),
                'clutter_density': np.zeros(k_scans), 'n_false': np.zeros(k_scans, int)}
+        if study.sweep_tc:
+            sweep = ConfirmationSweep()
+            rec['has_ctt_t'] = np.zeros((k_scans, len(T_GRID)), bool)
+            rec['n_false_t'] = np.zeros((k_scans, len(T_GRID)), np.int32)
         focus = None
         for k, s in enumerate(sectors):
             r = det.process(s.amplitudes, s.geometry, s.pose, focus)
@@ -156,6 +170,11 @@ def run_once(study: StudyConfig, seed: np.random.SeedSequence) -> dict[str, dict
             R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1] = d['cov_xx'], d['cov_xy'], d['cov_xy'], d['cov_yy']
             tracks = trk.step(s.stamp, z, R, d['clutter_density'])
             ev = evaluate_scan(truths[k], tracks, P0)
+            if study.sweep_tc and len(tracks):
+                est = np.column_stack([tracks[f] for f in ('x', 'y', 'vx', 'vy')])
+                label = classify_tracks(truths[k], est, P0).label
+                rec['has_ctt_t'][k], rec['n_false_t'][k] = sweep.update(tracks['track_id'].tolist(),
+                                                                        tracks['existence'].tolist(), label)
             rec['has_ctt'][k], rec['error'][k] = ev.has_ctt[0], ev.error[0]
             rec['threshold'][k], rec['clutter_density'][k], rec['n_false'][k] = r.threshold, r.mean_density, ev.n_false
             conf = tracks[tracks['confirmed'] != 0]

@@ -10,13 +10,17 @@ from the sensor's pose; the target's bearing is found at the frame's mid time, t
 bearing chosen, the target's bearing recomputed at that ping's time and the choice made again
 (the target moves little in bearing during a ping).
 
-:func:`simulate_tracking_frames` runs a scenario through :class:`~..fls.pipeline.FlsProcessor`
-(the ``fls_features`` pipeline) and returns its frames with that truth.
+:func:`processed_frames` is the one loop from the simulator to FLS frames: it feeds a scenario's
+sectors (decoded to linear amplitude) to :class:`~..fls.pipeline.FlsProcessor` (the
+``fls_features`` pipeline) and yields every frame with the sectors it was built from.
+:func:`simulate_tracking_frames` returns a scenario's frames with their imaged truth;
+:func:`~.fls_segmentation.simulate_frames` labels them with the targets' footprints.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, Callable, Iterator
 
 import numpy as np
 
@@ -25,7 +29,8 @@ from ..intensity import decode
 from ..sim import OutputConfig, SimConfig, Simulator
 from ..sim.sensor import SimSector
 
-__all__ = ['TrackingFrame', 'simulate_tracking_frames', 'imaged_truth', 'ping_table', 'sim_amplitudes']
+__all__ = ['TrackingFrame', 'simulate_tracking_frames', 'imaged_truth', 'ping_table', 'sim_amplitudes',
+           'simulator_for', 'processed_frames']
 
 
 @dataclass(eq=False)
@@ -88,23 +93,35 @@ def sim_amplitudes(sector: SimSector, output: OutputConfig) -> np.ndarray:
     return decode(sector.amplitudes, 'db', db_span=output.db_span, full_scale=255.0) * output.gain_floor
 
 
-def simulate_tracking_frames(scenario: str, seed: int | np.random.SeedSequence, config: FlsConfig | None = None,
-                             preset: str = '', **sim_overrides) -> list[TrackingFrame]:
-    """All frames of a SeaKing scenario (whole sweeps), processed as the ``fls_features`` node
-    does, each with its imaged truth. ``sim_overrides`` are flat SimConfig settings. Sectors in
-    8-bit dB output (structured scenarios) are decoded to linear amplitude first."""
+def simulator_for(scenario: str, seed: int | np.random.SeedSequence, preset: str = '', **sim_overrides) -> Simulator:
+    """The simulator of a SeaKing scenario seeded ``seed``; ``sim_overrides`` are flat SimConfig settings."""
     cfg = SimConfig.for_scenario(scenario, preset, **sim_overrides)
     if cfg.is_harbour:
         raise ValueError(f'scenario {scenario} on the harbour sonar has no FLS images; use a SeaKing preset')
-    sim = Simulator(cfg, np.random.default_rng(seed))
-    processor = FlsProcessor(config)
-    pending: list[SimSector] = []
-    out: list[TrackingFrame] = []
+    return Simulator(cfg, np.random.default_rng(seed))
+
+
+def processed_frames(sim: Simulator, processor: FlsProcessor, on_sector: Callable[[SimSector], Any] | None = None
+                     ) -> Iterator[tuple[FlsFrame, list[tuple[SimSector, Any]]]]:
+    """Every frame (whole sweep) of ``sim`` processed by ``processor``, with its member sectors, each
+    paired with what ``on_sector(sector)`` returned when the sector arrived (None without it).
+    Sectors in 8-bit dB output (structured scenarios) are decoded to linear amplitude first."""
+    pending: list[tuple[SimSector, Any]] = []
     while (sector := sim.next_sector()) is not None:
-        pending.append(sector)
-        values = sim_amplitudes(sector, cfg.output)
+        pending.append((sector, on_sector(sector) if on_sector is not None else None))
+        values = sim_amplitudes(sector, sim.config.output)
         for frame in processor.add_sector(values, sector.geometry, sector.pose, sector.stamp):
             members, pending = pending[:frame.sectors], pending[frame.sectors:]
-            ids, states, when = imaged_truth(sim, members)
-            out.append(TrackingFrame(frame, ids, states, when))
+            yield frame, members
+
+
+def simulate_tracking_frames(scenario: str, seed: int | np.random.SeedSequence, config: FlsConfig | None = None,
+                             preset: str = '', **sim_overrides) -> list[TrackingFrame]:
+    """All frames of a SeaKing scenario (:func:`processed_frames`), each with its imaged truth.
+    ``sim_overrides`` are flat SimConfig settings."""
+    sim = simulator_for(scenario, seed, preset, **sim_overrides)
+    out: list[TrackingFrame] = []
+    for frame, members in processed_frames(sim, FlsProcessor(config)):
+        ids, states, when = imaged_truth(sim, [sector for sector, _ in members])
+        out.append(TrackingFrame(frame, ids, states, when))
     return out

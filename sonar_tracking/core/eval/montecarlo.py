@@ -1,8 +1,14 @@
-"""Monte Carlo runs over processes, with the same results whatever the number of processes.
+"""Monte Carlo runs over processes or a Dask cluster, with the same results wherever they run.
 
 Run ``i`` of a study seeded ``seed`` draws from ``SeedSequence(seed).spawn(n)[i]``: its random
-numbers depend only on the study seed and its index, so splitting runs over ``jobs`` processes
-(or running them in one) gives identical results, returned in run order.
+numbers depend only on the study seed and its index, so running the runs in one process, over
+``jobs`` local processes or on the workers of a Dask distributed cluster gives identical results,
+returned in run order.
+
+A :class:`RunPool` is where runs go: ``RunPool(jobs)`` is this process (``jobs <= 1``) or a pool
+of ``jobs`` processes; ``RunPool(jobs, cluster='tcp://HOST:PORT')`` sends them to the Dask
+scheduler at that address, ``cluster='local'`` to a ``LocalCluster`` of ``jobs`` worker processes
+started for the pool. Dask (``pip install -r requirements-cluster.txt``) is imported only then.
 """
 from __future__ import annotations
 
@@ -10,11 +16,12 @@ import os
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-__all__ = ['run_seeds', 'run_monte_carlo', 'Progress', 'default_jobs']
+__all__ = ['run_seeds', 'run_monte_carlo', 'Progress', 'default_jobs', 'RunPool', 'ClusterUnavailable',
+           'add_pool_arguments', 'pool_from_args']
 
 
 def run_seeds(seed: int, n_runs: int) -> list[np.random.SeedSequence]:
@@ -62,25 +69,126 @@ def _call(args: tuple) -> Any:
     return fn(item, seed)
 
 
+class ClusterUnavailable(RuntimeError):
+    """A Dask cluster was asked for but Dask is not installed or the scheduler cannot be reached."""
+
+
+class RunPool:
+    """Where the runs of studies go: here, ``jobs`` local processes, or a Dask cluster.
+
+    Use as a context manager; one pool serves several :meth:`map` calls (``desired-density`` runs
+    one per candidate) without starting processes or a local cluster again.
+    """
+
+    def __init__(self, jobs: int = 1, cluster: str | None = None) -> None:
+        if jobs < 1:
+            raise ValueError(f'jobs must be >= 1, not {jobs}')
+        self.jobs, self.cluster = int(jobs), cluster or None
+        self._executor: ProcessPoolExecutor | None = None
+        self._client = self._local = None
+
+    def __enter__(self) -> 'RunPool':
+        if self.cluster:
+            self._connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def describe(self) -> str:
+        """For the summary line: 'N processes' or the cluster and its worker count."""
+        if not self.cluster:
+            return f'{self.jobs} processes'
+        workers = len(self._client.scheduler_info().get('workers', {})) if self._client else 0
+        where = 'a local Dask cluster' if self.cluster == 'local' else f'the Dask cluster {self.cluster}'
+        return f'{where} ({workers} workers)'
+
+    def _connect(self) -> None:
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise ClusterUnavailable('--cluster needs Dask distributed: pip install -r requirements-cluster.txt '
+                                     '(or pip install "dask[distributed]")') from None
+        try:
+            if self.cluster == 'local':
+                self._local = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=40)
+                self._client = Client(self._local)
+            else:
+                self._client = Client(self.cluster, timeout=30)
+        except (OSError, TimeoutError) as exc:
+            self.close()
+            raise ClusterUnavailable(f'cannot reach the Dask scheduler {self.cluster}: {exc}') from None
+
+    def map(self, fn: Callable[[Any, Any], Any], item: Any, seeds: Iterable, progress: Progress | None = None) -> list:
+        """``[fn(item, s) for s in seeds]`` in that order, wherever the pool runs them.
+
+        ``fn`` must be a module-level function of an installed package: workers import it by name."""
+        seeds = list(seeds)
+        tasks: Sequence[tuple] = [(fn, item, s) for s in seeds]
+        if self.cluster:
+            return self._map_cluster(tasks, progress)
+        if self.jobs <= 1 or len(tasks) <= 1:
+            out = []
+            for t in tasks:
+                out.append(_call(t))
+                if progress:
+                    progress.update()
+            return out
+        if self._executor is None:
+            self._executor = ProcessPoolExecutor(max_workers=self.jobs)
+        out = []
+        for result in self._executor.map(_call, tasks, chunksize=max(1, len(tasks) // (8 * self.jobs))):
+            out.append(result)
+            if progress:
+                progress.update()
+        return out
+
+    def _map_cluster(self, tasks: Sequence[tuple], progress: Progress | None) -> list:
+        from distributed import as_completed
+        if self._client is None:
+            self._connect()
+        futures = self._client.map(_call, tasks, pure=False)
+        for _ in as_completed(futures):
+            if progress:
+                progress.update()
+        return self._client.gather(futures)  # run order, whatever order they finished in
+
+    def close(self) -> None:
+        if self._executor is not None:
+            self._executor.shutdown()
+            self._executor = None
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._local is not None:
+            self._local.close()
+            self._local = None
+
+
 def run_monte_carlo(fn: Callable[[Any, np.random.SeedSequence], Any], item: Any, n_runs: int, seed: int,
-                    jobs: int = 1, progress: Progress | None = None) -> list:
-    """``[fn(item, seed_i) for i in range(n_runs)]``, spread over ``jobs`` processes.
+                    jobs: int = 1, progress: Progress | None = None, pool: RunPool | None = None) -> list:
+    """``[fn(item, seed_i) for i in range(n_runs)]`` (``seed_i`` from :func:`run_seeds`), on ``pool``
+    or else over ``jobs`` local processes.
 
     ``fn`` must be a module-level function (it is pickled to the worker processes).
     """
     seeds = run_seeds(seed, n_runs)
-    tasks: Sequence[tuple] = [(fn, item, s) for s in seeds]
-    if jobs <= 1 or n_runs <= 1:
-        out = []
-        for t in tasks:
-            out.append(_call(t))
-            if progress:
-                progress.update()
-        return out
-    out = []
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        for result in pool.map(_call, tasks, chunksize=max(1, n_runs // (8 * jobs))):
-            out.append(result)
-            if progress:
-                progress.update()
-    return out
+    if pool is not None:
+        return pool.map(fn, item, seeds, progress)
+    with RunPool(jobs) as own:
+        return own.map(fn, item, seeds, progress)
+
+
+def add_pool_arguments(parser: Any) -> None:
+    """``--jobs`` and ``--cluster`` of the ``sonar_eval`` studies."""
+    parser.add_argument('--jobs', type=int, default=default_jobs(),
+                        help='processes (default: all cores); with --cluster local, the workers')
+    parser.add_argument('--cluster', default=None, metavar='tcp://HOST:PORT|local',
+                        help='run the runs on the Dask scheduler at this address, or on a local Dask cluster of '
+                        '--jobs workers; results are those of --jobs (needs requirements-cluster.txt)')
+
+
+def pool_from_args(args: Any) -> RunPool:
+    """The :class:`RunPool` of parsed ``--jobs`` / ``--cluster`` (not yet entered)."""
+    return RunPool(args.jobs, getattr(args, 'cluster', None))

@@ -28,12 +28,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable, Mapping
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from ..detection import ActiveDetector, DetectorConfig
+from ..fls import FlsConfig
 from ..sim import SimConfig, Simulator
 from ..sim.structure import Structure
 from ..tracking.config import TrackerConfig
@@ -42,10 +43,28 @@ from ..tracking.tracker import ImmIpdaTracker
 from .fls_frames import sim_amplitudes, simulate_tracking_frames
 from .fls_study import FlsStudy, run_methods
 
-__all__ = ['StructureCounts', 'structure_distance', 'count_structure_tracks', 'run_structure_study']
+__all__ = ['StructureCounts', 'structure_distance', 'count_structure_tracks', 'run_structure_study',
+           'STRUCTURE_REJECTION', 'plain_twin']
 
 #: Desired clutter density of the harbour pipeline (the ESC study's rho_D) [1/m^2].
 HARBOUR_RHO_D = 2.21e-5
+
+#: Static-structure rejection for the simulated sensors (``core.structure``), as a sensor preset
+#: would set it: shape gates a few target sizes long, and the persistent-echo background. The
+#: harbour sonar confirms a track within about four 1 s scans, so its cells must count as persistent
+#: sooner (``min_echo_time`` 3 s); its 17 m cells make walls long in cells but its targets short.
+STRUCTURE_REJECTION: dict[str, dict[str, Any]] = {
+    'seaking': {'structure.enabled': True, 'structure.max_length': 6.0, 'structure.elongated_length': 2.5,
+                'structure.max_aspect': 4.0},
+    'harbour': {'structure.enabled': True, 'structure.min_echo_time': 3.0, 'structure.max_length': 120.0,
+                'structure.elongated_length': 80.0, 'structure.max_aspect': 4.0},
+}
+
+
+def plain_twin(scenario: str) -> str | None:
+    """The structure-free scenario a structured one is built on (``fls8_structured`` -> ``fls8``),
+    or None (``structure_only`` has no twin)."""
+    return scenario[:-len('_structured')] if scenario.endswith('_structured') else None
 
 
 @dataclass(frozen=True)
@@ -126,24 +145,30 @@ def count_structure_tracks(records: list[np.ndarray], truths: list[np.ndarray],
 
 def run_structure_study(scenario: str, seed: int, frames: int, preset: str = '', method: str = 'af',
                         near: float | None = None, clearance: float | None = None, gate: float | None = None,
-                        **sim_overrides) -> StructureCounts:
-    """Run ``frames`` frames (SeaKing sweeps or harbour scans) of a structured scenario through the
-    front end and tracker of its sensor and count tracks on structure (module docstring).
+                        front_end: Mapping[str, Any] | None = None, **sim_overrides) -> StructureCounts:
+    """Run ``frames`` frames (SeaKing sweeps or harbour scans) of a scenario through the front end and
+    tracker of its sensor and count tracks on structure (module docstring); a scenario without
+    structure (the plain twin of a structured one) has none on structure, and its CTTR and CLE are
+    the baseline.
 
-    Distances default to the sensor's scale: ``near`` 1 m, ``clearance`` 2 m, ``gate`` 1.5 m (the
-    FLS study's) in the tank; 40, 100 and 100 m (a few 17 m cells) on the harbour sonar.
+    ``front_end``: flat settings of the front end (``FlsConfig`` on a SeaKing, ``DetectorConfig`` on
+    the harbour sonar), e.g. :data:`STRUCTURE_REJECTION`. Distances default to the sensor's scale:
+    ``near`` 1 m, ``clearance`` 2 m, ``gate`` 1.5 m (the FLS study's) in the tank; 40, 100 and 100 m
+    (a few 17 m cells) on the harbour sonar.
     """
     cfg = SimConfig.for_scenario(scenario, preset, **sim_overrides)
     harbour = cfg.is_harbour
     near = near if near is not None else (40.0 if harbour else 1.0)
     clearance = clearance if clearance is not None else (100.0 if harbour else 2.0)
     gate = gate if gate is not None else (100.0 if harbour else 1.5)
+    front_end = dict(front_end or {})
     if harbour:
-        records, truths, poses, sim = _harbour_tracks(cfg, seed, frames)
+        records, truths, poses, sim = _harbour_tracks(cfg, seed, frames, DetectorConfig.from_flat(front_end))
         first_range = sim.sensor.geometry.range_min - 0.5 * cfg.harbour.cell_depth
     else:
         duration = frames * cfg.seaking.sweep_time + 1e-6
-        tf = simulate_tracking_frames(scenario, seed, None, preset, **{**sim_overrides, 'duration': duration})
+        tf = simulate_tracking_frames(scenario, seed, FlsConfig.from_flat(front_end), preset,
+                                      **{**sim_overrides, 'duration': duration})
         records = run_methods(FlsStudy(scenario, methods=(method,), preset=preset), tf,
                               np.random.SeedSequence(seed))[method]
         truths = [f.truth for f in tf]
@@ -151,26 +176,26 @@ def run_structure_study(scenario: str, seed: int, frames: int, preset: str = '',
         sim = Simulator(cfg, np.random.default_rng(seed))
         first_range = 0.0
     structure = sim.scene.structure
-    if structure is None:
-        raise ValueError(f'scenario {scenario} has no structure (structure.kind = none)')
 
     def distance(k: int, xy: np.ndarray) -> np.ndarray:
+        if structure is None:
+            return np.full(len(xy), np.inf)
         return structure_distance(xy, structure, poses[k][:2], first_range)
 
     return count_structure_tracks(records, truths, distance, near, clearance, gate)
 
 
-def _harbour_tracks(cfg: SimConfig, seed: int, frames: int):
+def _harbour_tracks(cfg: SimConfig, seed: int, frames: int, detector_config: DetectorConfig):
     """Per scan: IMM-IPDA track records, true positions and sonar poses; and the simulator."""
     sim = Simulator(cfg, np.random.default_rng(seed))
-    detector = ActiveDetector(DetectorConfig(), HARBOUR_RHO_D)
+    detector = ActiveDetector(detector_config, HARBOUR_RHO_D)
     tracker = ImmIpdaTracker(TrackerConfig.from_flat({'imm.models': 'cv,ccw,cw'}))
     records, truths, poses = [], [], []
     for _ in range(frames):
         s = sim.next_sector()
         if s is None:
             break
-        result = detector.process(sim_amplitudes(s, cfg.output), s.geometry, s.pose)
+        result = detector.process(sim_amplitudes(s, cfg.output), s.geometry, s.pose, stamp=s.stamp)
         z, R, rho, _ = detections_to_measurements(result.detections)
         records.append(tracker.step(s.stamp, z, R, rho))
         truths.append(sim.truth(s.stamp)[1])

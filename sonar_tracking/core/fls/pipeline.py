@@ -12,9 +12,13 @@ The sector's values are turned into linear echo amplitude by ``intensity``
 floor, near-range blanking, maximum range); the default takes the simulator's linear amplitude as
 it is. Static structure (``structure``, :mod:`sonar_tracking.core.structure`) is rejected per
 region: regions too long, too wide, too large or elongated, and regions lying on pixels that echo
-persistently. The persistent-echo background is a grid in the image frame (the sensor frame for a
-static sonar, the world frame for a moving one) that learns once per completed sweep from the
-pixels above the growth level ``segment.grow_db``, so each pixel is one look per sweep.
+persistently; their pixels, and every pixel above the background level on a persistent cell of the
+background, are masked out of the frame's image as no data (0), so a tracker reading the image
+(the GPF) finds nothing there and a track that sat on structure before the background knew it
+ends. With ``structure.warmup`` no region comes out until the background has learnt for
+``min_echo_time``. The persistent-echo background is a grid in the image frame (the sensor frame
+for a static sonar, the world frame for a moving one) that learns once per completed sweep from
+the pixels above the growth level ``segment.grow_db``, so each pixel is one look per sweep.
 
 A frame (:class:`FlsFrame`) is emitted when a sweep completes (:mod:`.sweep`), or after every
 sector with ``image.publish = 'sector'``. Its image is the filtered, range-normalised intensity
@@ -36,7 +40,7 @@ from ..intensity import IntensityConfig, condition
 from ..records import FEATURE_NAMES, REGION_DTYPE
 from ..sector import GeometryError, SectorError, SectorGeometry
 from ..sector import check_sector as sector_rule
-from ..structure import GridBackground, StructureConfig, echo_shapes, is_structure_shape, vetoed_groups
+from ..structure import GridBackground, StructureConfig, WarmUp, echo_shapes, is_structure_shape, vetoed_groups
 from .features import FeatureConfig, region_features
 from .filters import FilterConfig, PolarSweepFilter
 from .grid import ImageGrid
@@ -148,6 +152,7 @@ class FlsProcessor:
         self.builder = ImageBuilder(self.config.image)
         self.sweep = SweepTracker()
         self.background: GridBackground | None = None
+        self.warmup = WarmUp()
         self.resets = 0
         self._weight_key: tuple | None = None
         self._weight: np.ndarray | None = None
@@ -166,6 +171,7 @@ class FlsProcessor:
         self.builder.reset()
         self.sweep.reset()
         self.background = None
+        self.warmup.reset()
         self.resets += 1
         self._clear()
 
@@ -180,6 +186,7 @@ class FlsProcessor:
             self.builder.config = config.image
         if config.structure != old.structure:
             self.background = None
+            self.warmup.reset()
 
     def add_sector(self, amplitudes: np.ndarray, geometry: SectorGeometry,
                    pose: tuple[float, float, float] = (0.0, 0.0, 0.0), stamp: float = 0.0) -> list[FlsFrame]:
@@ -229,11 +236,20 @@ class FlsProcessor:
         t1 = time.perf_counter()
         labels, n = grow_regions(image, c.segment, grid.resolution, self._cell_weight(grid))
         dropped = 0
+        static = None
         if c.structure.enabled:
+            static = labels > 0
             labels, kept = self._reject_structure(image, raw, grid, labels, n, sweep_end)
+            static &= labels == 0
             dropped, n = n - kept, kept
         t2 = time.perf_counter()
         regions = regions_to_records(image, labels, n, grid, self._pose, c.features)
+        if static is not None and self.background is not None:
+            static |= self._persistent_pixels(image, grid)
+        if static is not None and static.any():
+            # Structure is masked out of the image too, as no data: a tracker that follows image
+            # evidence (the GPF) must not find it there either.
+            image = np.where(static, np.float32(0.0), image)
         t3 = time.perf_counter()
         level = self.filter.level
         background_db = float(10 * np.log10(np.median(level))) if level is not None else math.nan
@@ -269,8 +285,21 @@ class FlsProcessor:
                 structure |= vetoed_groups(own, n, on, sc.veto_fraction)
             if learn:
                 self._learn(image, raw, grid, t)
+        if self.warmup.holding(self._last_stamp, sc):
+            structure[:] = True          # the background is too young to tell structure from targets
         keep = np.concatenate([[False], ~structure])
         return relabel(labels, keep)
+
+    def _persistent_pixels(self, image: np.ndarray, grid: ImageGrid) -> np.ndarray:
+        """Pixels above the background level that lie on persistent cells of the background (the
+        parts of a wall or seabed band that no region covers, and structure tracks may sit on)."""
+        out = np.zeros(image.shape, bool)
+        rows, cols = np.nonzero(image > 1.0)
+        if rows.size:
+            x, y = grid.pixel_to_point(rows, cols)
+            on = self.background.persistent(x, y, self._last_stamp)
+            out[rows[on], cols[on]] = True
+        return out
 
     def _learn(self, image: np.ndarray, raw: np.ndarray, grid: ImageGrid, t: float) -> None:
         """One look of the background at every painted pixel; echo where above the growth level."""

@@ -17,12 +17,22 @@ the time, because a full box makes most of the general computation unnecessary:
 * the moments of eq. (1) (f14-f20) are weighted sums over the box, a few small products per
   window, with Hu's invariants from :func:`~.features.hu_moments`;
 * the co-occurrence counts (f21-f30) of a full box count all pixel pairs of the box in the four
-  directions: one ``bincount`` for all windows, grey levels from :func:`~.features.quantise` and
-  the statistics from :func:`~.features.glcm_features`.
+  directions: one ``bincount`` for all windows, grey levels from :func:`~.features.quantise` (of
+  the whole image once when a call asks for more window pixels than the image has) and the
+  statistics from :func:`~.features.glcm_features`.
 
-The image is padded once in :class:`WindowImage`; each call then gathers the K patches by flat
-index into arrays kept between calls. 300 windows of 11 x 11
-pixels with the paper's five features (20, 17, 3, 6, 24) cost well under a millisecond.
+The image is padded once in :class:`WindowImage`; each call then gathers the patches by flat
+index into arrays kept between calls, :data:`CHUNK` windows at a time (so they stay in the cache).
+300 windows of 11 x 11 pixels with the paper's five features (20, 17, 3, 6, 24) cost well under a
+millisecond.
+
+The fallback of f06 (a window whose ring has no pixel with data) is the median of the pixels with
+data of all the call's patches; a caller that looks up several particle clouds at once, or each
+distinct window once, passes ``groups`` (the cloud of each window) and ``counts`` (how many
+particles share it): the median is then that of the cloud's patches, each counted that many times,
+exactly as if the cloud had been looked up alone with its repeated windows. Every feature of a
+window is then the same to the last bit however the windows are batched, except f25-f29, whose
+matrix products in :func:`~.features.glcm_features` round differently with the batch size.
 """
 from __future__ import annotations
 
@@ -33,7 +43,10 @@ import numpy as np
 from .features import (_DIRECTIONS, _GROUPS, N_FEATURES, FeatureConfig, _wanted, glcm_features, hu_moments,
                        patch_features, quantise)
 
-__all__ = ['WindowImage', 'window_features', 'WINDOW_SHAPE_FEATURES']
+__all__ = ['WindowImage', 'window_features', 'WINDOW_SHAPE_FEATURES', 'CHUNK']
+
+#: Windows gathered and computed together: larger batches spill out of the cache and run slower.
+CHUNK = 1024
 
 #: Features fixed by the mask alone: the same for every window of one size.
 WINDOW_SHAPE_FEATURES = frozenset({1, 2, 5, 10, 11, 12, 13})
@@ -55,7 +68,9 @@ class WindowImage:
         self.config = config or FeatureConfig()
         self.shape = img.shape
         self.max_size = int(max_size)
-        self.pad = max_size // 2 + 2
+        # A centre outside the image moves to the nearest place where its patch (half = size // 2 + 1
+        # pixels either side) lies entirely outside (see _flat_index): up to 2 half + 1 pixels out.
+        self.pad = 2 * (max_size // 2 + 1) + 1
         h, w = img.shape
         pw = w + 2 * self.pad
         self._width = pw
@@ -71,6 +86,7 @@ class WindowImage:
         self._shape_rows: dict[tuple[int, tuple[int, ...]], np.ndarray] = {}
         self._buffers: dict[str, np.ndarray] = {}
         self._thresholds: np.ndarray | None = None
+        self._levels: np.ndarray | None = None
 
     def _offsets_of(self, size: int) -> np.ndarray:
         off = self._offsets.get(size)
@@ -86,14 +102,7 @@ class WindowImage:
         The index and patch arrays are kept between calls: fresh arrays of this size cost more in
         page faults than the features themselves.
         """
-        _check_size(size)
-        if size > self.max_size:
-            raise ValueError(f'window size {size} exceeds max_size {self.max_size} of this WindowImage')
-        r, c = np.asarray(rows), np.asarray(cols)
-        if r.shape != c.shape or r.ndim != 1:
-            raise ValueError(f'rows {r.shape} and cols {c.shape} must be 1-D arrays of one length')
-        if r.size and (r.dtype.kind not in 'iu' or c.dtype.kind not in 'iu'):
-            raise ValueError('window centres must be integer pixel indices (round fractional positions first)')
+        r, c = self._check(rows, cols, size)
         h, w = self.shape
         half = size // 2 + 1
         # A centre far outside moves to where its patch is still entirely outside: the same (no) data.
@@ -104,11 +113,25 @@ class WindowImage:
         np.add((r * self._width + c)[:, None], off[None, :], out=idx)
         return idx
 
+    def _check(self, rows, cols, size: int) -> tuple[np.ndarray, np.ndarray]:
+        """The window centres as arrays, or ValueError saying what is wrong with the arguments."""
+        _check_size(size)
+        if size > self.max_size:
+            raise ValueError(f'window size {size} exceeds max_size {self.max_size} of this WindowImage')
+        r, c = np.asarray(rows), np.asarray(cols)
+        if r.shape != c.shape or r.ndim != 1:
+            raise ValueError(f'rows {r.shape} and cols {c.shape} must be 1-D arrays of one length')
+        if r.size and (r.dtype.kind not in 'iu' or c.dtype.kind not in 'iu'):
+            raise ValueError('window centres must be integer pixel indices (round fractional positions first)')
+        return r, c
+
     def _buffer(self, name: str, shape: tuple[int, ...], dtype) -> np.ndarray:
+        """A kept array of at least this size, viewed with ``shape`` (its contents are garbage)."""
+        n = int(np.prod(shape))
         buf = self._buffers.get(name)
-        if buf is None or buf.shape != shape:
-            buf = self._buffers[name] = np.empty(shape, dtype)
-        return buf
+        if buf is None or buf.size < n or buf.dtype != dtype:
+            buf = self._buffers[name] = np.empty(n, dtype)
+        return buf[:n].reshape(shape)
 
     def _gather(self, idx: np.ndarray, size: int) -> np.ndarray:
         out = self._buffer('values', idx.shape, self._values.dtype)
@@ -137,16 +160,51 @@ class WindowImage:
             np.add(out, above.view(np.int8), out=out)
         return out.reshape(values.shape)
 
-    def features(self, rows, cols, size: int, features=None) -> np.ndarray:
+    def features(self, rows, cols, size: int, features=None, groups=None, counts=None) -> np.ndarray:
         """Table 2 features ``(K, 30)`` (or ``(K, len(features))``) of the windows of odd ``size``
-        centred on integer pixels ``(rows, cols)``."""
+        centred on integer pixels ``(rows, cols)``; ``groups`` and ``counts`` (integers ``(K,)``) as
+        in the module docstring."""
         wanted = _wanted(features)
         want = set(wanted)
-        idx = self._flat_index(rows, cols, size)
-        k = len(idx)
+        r, c = self._check(rows, cols, size)
+        k = len(r)
         out = np.full((k, N_FEATURES + 1), np.nan)
         if k == 0:
             return out[:, wanted]
+        ring = want & _GROUPS['background']
+        background = np.empty(k) if ring else None
+        has = np.empty(k, bool) if ring else None
+        if self._levels is None and want & _GROUPS['glcm'] and k * size * size > self._values.size:
+            # More window pixels than the image has: grey levels of the whole padded image, once.
+            self._levels = self._levels_of(self._values).copy()
+        for a in range(0, k, CHUNK):
+            b = min(k, a + CHUNK)
+            self._chunk(r[a:b], c[a:b], size, want, out[a:b], None if background is None else background[a:b],
+                        None if has is None else has[a:b])
+        if ring:
+            if not has.all():
+                self._fallback(r, c, size, has, background, groups, counts)
+            mean = out[:, 3]
+            out[:, 6] = background
+            out[:, 7] = mean - background
+            out[:, 8] = mean / background
+            out[:, 9] = (mean - background) / (mean + background)
+        return out[:, wanted]
+
+    def _fallback(self, r, c, size, has, background, groups, counts) -> None:
+        """Background of the windows whose ring has no pixel with data (module docstring)."""
+        g = np.zeros(len(r), np.int64) if groups is None else np.asarray(groups)
+        n = np.ones(len(r), np.int64) if counts is None else np.asarray(counts)
+        for group in np.unique(g[~has]):
+            sel = g == group
+            p = np.repeat(self.patches(r[sel], c[sel], size), n[sel], axis=0)
+            valid = p > 0
+            background[sel & ~has] = float(np.median(p[valid])) if valid.any() else 1.0
+
+    def _chunk(self, rows, cols, size, want, out, background, has) -> None:
+        """Everything but the f06 fallback and f06-f09 for one chunk of windows (into ``out``)."""
+        idx = self._flat_index(rows, cols, size)
+        k = len(idx)
         m = size + 2
         p = self._gather(idx, size)
         box = p[:, 1:-1, 1:-1]
@@ -168,19 +226,13 @@ class WindowImage:
             dev = box.reshape(k, -1) - mean[:, None]
             out[:, 4] = np.sqrt(np.clip(np.einsum('ki,ki->k', dev, dev) / n_px, 0.0, None))
 
-        if want & _GROUPS['background']:
+        if background is not None:
             ring_sum = p.sum(axis=(1, 2)) - box_sum
             valid = p > 0
             ring_cnt = (np.count_nonzero(valid, axis=(1, 2)) - np.count_nonzero(box > 0, axis=(1, 2))).astype(float)
             # Pixels without data are 0, so the sum over the whole ring is the sum over those with data.
-            has = ring_cnt > 0.5
-            background = ring_sum / np.where(has, ring_cnt, 1.0)
-            if not has.all():
-                background = np.where(has, background, float(np.median(p[valid])) if valid.any() else 1.0)
-            out[:, 6] = background
-            out[:, 7] = mean - background
-            out[:, 8] = mean / background
-            out[:, 9] = (mean - background) / (mean + background)
+            np.greater(ring_cnt, 0.5, out=has)
+            np.divide(ring_sum, np.where(has, ring_cnt, 1.0), out=background)
 
         if want & _GROUPS['hu']:
             i = np.arange(size, dtype=np.float64)
@@ -203,7 +255,12 @@ class WindowImage:
         if glcm_cols:
             s = self.config.glcm_levels
             d = self.config.glcm_distance
-            q = self._levels_of(box)
+            if self._levels is None:
+                q = self._levels_of(box)
+            else:
+                q = self._buffer('q', idx.shape, self._levels.dtype)
+                np.take(self._levels, idx, out=q)
+                q = q.reshape(k, m, m)[:, 1:-1, 1:-1]
             # Code of a pair (a, b) of window j: (j S + a) S + b; the first factor once per pixel.
             first = self._buffer('first', q.shape, np.intp)
             first[...] = q
@@ -231,7 +288,6 @@ class WindowImage:
                 h = np.zeros((k, s, s), np.int64)
                 h[np.arange(k), q[:, 0, 0], q[:, 0, 0]] = 1
             out[:, glcm_cols] = glcm_features(h, glcm_cols)
-        return out[:, wanted]
 
 
 @functools.lru_cache(maxsize=16)

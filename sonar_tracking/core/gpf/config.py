@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from ..config import Config, ConfigError, setting
 from ..fls import PAPER_FEATURES
 from ..fls.windows import WINDOW_SHAPE_FEATURES
+from .cues import MAX_WINDOW
 
 __all__ = ['MotionConfig', 'CueConfig', 'FusionConfig', 'BirthConfig', 'LostConfig', 'TemplateConfig',
            'GpfConfig', 'FUSION_MODES', 'FUSION_SWITCHES', 'PAPER_INITIAL_VARIANCE_PX', 'PAPER_PIXEL']
@@ -63,6 +64,10 @@ class CueConfig(Config):
     window: float = setting(0.7, 'side of the square window around a particle whose features it gets (ours; '
                             'rounded to an odd number of pixels, at least 3)', unit='m', low=0.0, high=20.0,
                             low_open=True)
+    pixel: float = setting(0.1, 'window features are measured on the image block-averaged to the coarsest pixel '
+                           'not larger than this (ours: the cue scales were calibrated on 0.1 m pixels, and the '
+                           'work per particle grows with the window\'s area in pixels); 0 = the image\'s own '
+                           'pixels', unit='m', low=0.0, high=20.0)
     alpha: float = setting(1.0, 'likelihood-function noise alpha of eq. (13); the distance control '
                            'coefficients beta_i are 1/sigma_i^2 of each feature (sonar_tracking.core.gpf.cues)',
                            low=0.0, high=100.0, low_open=True)
@@ -79,6 +84,13 @@ class CueConfig(Config):
             raise ConfigError(f'cues.features = {list(self.features)} must be whole Table 2 numbers 1..30')
         if len(set(self.numbers)) != len(self.numbers):
             raise ConfigError(f'cues.features = {list(self.numbers)} names a feature twice')
+        # The cues' pixel is between pixel / 2 and pixel (a block of whole image pixels), so the window
+        # has up to 2 window / pixel pixels; beyond MAX_WINDOW it would be cut.
+        if self.pixel > 0.0 and 2.0 * self.window / self.pixel > MAX_WINDOW + 1:
+            raise ConfigError(f'window {self.window:g} m spans up to {2.0 * self.window / self.pixel:.0f} pixels '
+                              f'of cues.pixel {self.pixel:g} m (blocks of whole image pixels are between half of '
+                              f'it and it); at most {MAX_WINDOW}: raise cues.pixel to at least '
+                              f'{2.0 * self.window / (MAX_WINDOW + 1):.3g} m or shrink cues.window')
         fixed = sorted(set(self.numbers) & WINDOW_SHAPE_FEATURES)
         if fixed:
             raise ConfigError(f'cues.features {fixed} are the same for every window (area, perimeter and shape of '
@@ -145,9 +157,9 @@ class LostConfig(Config):
     distinct: float = setting(1.0, 'a template is trackable when its mean (d_i / sigma_i)^2 to the frame\'s background '
                               '(the median window) exceeds this; a track whose template looks like background sees '
                               'nothing (ours)', low=0.0, high=1e6)
-    ratio: float = setting(0.5, 'the target is seen when the mean (d_i / sigma_i)^2 between the template and the window '
-                           'at the estimate is below this fraction of the template\'s distance to the background '
-                           '(ours)', low=0.0, high=1.0, low_open=True)
+    ratio: float = setting(0.5, 'the target is seen when the mean (d_i / sigma_i)^2 between the template and the '
+                           'window at the estimate is below this fraction of the template\'s distance to the '
+                           'background (ours)', low=0.0, high=1.0, low_open=True)
     inflation: float = setting(1.5, 'covariance multiplied by this in each frame the target is not seen',
                                low=1.0, high=100.0)
     refind_sigma: float = setting(0.65, 'position std of a region that a lost track takes up (ours: about the '
@@ -164,6 +176,10 @@ class LostConfig(Config):
                               'echoes)', unit='s', low=0.0, high=1e6)
     tentative_time: float = setting(6.0, 'a tentative track ends after this long without seeing its target '
                                     '(0: at its first miss)', unit='s', low=0.0, high=1e6)
+    outside_time: float = setting(2.0, 'a track ends once its estimate has been outside the sonar\'s coverage (no '
+                                  'pixel with data in its window: outside the fan or the image) this long (ours: '
+                                  'two 5 s tank frames, or 2 s of a 10 Hz imaging sonar; 0: at the first such '
+                                  'frame)', unit='s', low=0.0, high=1e6)
 
 
 @dataclass(frozen=True)

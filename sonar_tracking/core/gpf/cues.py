@@ -65,9 +65,10 @@ from ..fls.features import FEATURE_LABELS, FeatureConfig
 from ..fls.grid import ImageGrid
 from ..fls.windows import WindowImage
 
-__all__ = ['CueSpec', 'CUE_SPECS', 'CueModel', 'window_pixels', 'MAX_WINDOW']
+__all__ = ['CueSpec', 'CUE_SPECS', 'CueModel', 'window_pixels', 'pixel_index', 'coarsening', 'coarsen', 'MAX_WINDOW']
 
-#: Largest window side in pixels (a coarse image gets at least 3, a fine one at most this).
+#: Largest window side in pixels (a coarse image gets at least 3, a fine one at most this: the work
+#: per particle grows with the window's area).
 MAX_WINDOW = 41
 
 
@@ -112,13 +113,43 @@ def _specs() -> dict[int, CueSpec]:
 CUE_SPECS: dict[int, CueSpec] = _specs()
 
 
-def window_pixels(window: float, resolution: float) -> int:
-    """The odd number of pixels closest to ``window`` metres, between 3 and :data:`MAX_WINDOW`."""
+def window_pixels(window: float, resolution: float, largest: int | None = MAX_WINDOW) -> int:
+    """The odd number of pixels closest to ``window`` metres, at least 3 and at most ``largest``
+    (None: no limit)."""
     ratio = round(window / resolution, 9)  # 0.7 / 0.05 is 13.999999999999998
     n = int(round(ratio))
     if n % 2 == 0:
         n = n + 1 if ratio >= n else n - 1
-    return int(min(max(n, 3), MAX_WINDOW))
+    n = max(n, 3)
+    return int(n if largest is None else min(n, largest))
+
+
+def coarsening(pixel: float, resolution: float) -> int:
+    """The block size (pixels per side) that averages an image of ``resolution`` to the coarsest
+    pixel not larger than ``pixel`` metres (1: the image as it is; ``pixel`` 0: always 1)."""
+    if pixel <= 0.0:
+        return 1
+    return max(1, int(math.floor(pixel / resolution + 1e-9)))
+
+
+def coarsen(image: np.ndarray, valid: np.ndarray, grid: ImageGrid, factor: int) -> tuple[np.ndarray, ImageGrid]:
+    """The image averaged over blocks of ``factor x factor`` pixels, each block the mean of its
+    ``valid`` pixels (0 = no data where none is), and the grid of the blocks (same origin)."""
+    h, w = image.shape
+    rows, cols = np.arange(0, h, factor), np.arange(0, w, factor)     # block starts; the last may be partial
+    sums = np.add.reduceat(np.add.reduceat(np.where(valid, image, 0.0), cols, axis=1), rows, axis=0)
+    counts = np.add.reduceat(np.add.reduceat(valid.astype(np.float64), cols, axis=1), rows, axis=0)
+    out = np.divide(sums, counts, out=np.zeros_like(sums), where=counts > 0)
+    hc, wc = out.shape
+    coarse = ImageGrid(resolution=grid.resolution * factor, width=wc, height=hc, origin_x=grid.origin_x,
+                       origin_y=grid.origin_y, origin_yaw=grid.origin_yaw)
+    return out, coarse
+
+
+def pixel_index(fractional: np.ndarray) -> np.ndarray:
+    """Integer pixel indices of fractional positions (:meth:`~..fls.grid.ImageGrid.point_to_pixel`),
+    non-finite and huge values pushed far outside the image (where windows hold no data)."""
+    return np.rint(np.nan_to_num(fractional, nan=-1e9, posinf=1e9, neginf=-1e9)).clip(-1e9, 1e9).astype(np.int64)
 
 
 class CueModel:
@@ -147,20 +178,41 @@ class CueModel:
         """The frame's image, ready for many window lookups."""
         return WindowImage(image, self.feature_config, MAX_WINDOW)
 
-    def values(self, wi: WindowImage, grid: ImageGrid, xy: np.ndarray) -> np.ndarray:
-        """Transformed features ``(m, K)`` of the windows at positions ``xy (K, 2)`` (image frame)."""
+    def values(self, wi: WindowImage, grid: ImageGrid, xy: np.ndarray, size: int | None = None,
+               clouds: np.ndarray | None = None) -> np.ndarray:
+        """Transformed features ``(m, K)`` of the windows at positions ``xy (K, 2)`` (image frame),
+        ``size`` pixels wide (default :func:`window_pixels` of the grid); ``clouds (K,)`` says which
+        particle cloud each position belongs to when several are looked up together (the results
+        are those of looking up each cloud alone). Particles of a cloud in one pixel share its
+        window, so each distinct window is computed once."""
+        if size is None:
+            size = window_pixels(self.window, grid.resolution)
         r, c = grid.point_to_pixel(xy[:, 0], xy[:, 1])
-        rows = np.rint(np.nan_to_num(r, nan=-1e9, posinf=1e9, neginf=-1e9)).clip(-1e9, 1e9).astype(np.int64)
-        cols = np.rint(np.nan_to_num(c, nan=-1e9, posinf=1e9, neginf=-1e9)).clip(-1e9, 1e9).astype(np.int64)
-        raw = wi.features(rows, cols, window_pixels(self.window, grid.resolution), self.features)
+        rows, cols = pixel_index(r), pixel_index(c)
+        if len(rows) > 1:
+            # Windows far outside all hold no data: clipped, they keep one key per cloud and side.
+            h, w = grid.shape
+            reach = size // 2 + 2
+            span = (h + 2 * reach + 1) * (w + 2 * reach + 1)
+            key = ((np.clip(rows, -reach, h + reach) + reach) * (w + 2 * reach + 1) +
+                   np.clip(cols, -reach, w + reach) + reach)
+            if clouds is not None:
+                key = key + np.asarray(clouds, dtype=np.int64) * span
+            _, first, inverse, counts = np.unique(key, return_index=True, return_inverse=True, return_counts=True)
+            groups = None if clouds is None else np.asarray(clouds)[first]
+            raw = wi.features(rows[first], cols[first], size, self.features, groups, counts)[inverse.reshape(-1)]
+        else:
+            raw = wi.features(rows, cols, size, self.features)
         out = np.empty((self.m, len(xy)))
         for i, spec in enumerate(self.specs):
             out[i] = spec.apply(raw[:, i])
         return out
 
     def distances2(self, values: np.ndarray, template: np.ndarray) -> np.ndarray:
-        """``beta_i d^2(S^i, S_m^i)`` of eq. (13): squared scaled distances ``(m, K)``."""
-        d = (values - template[:, None]) / self.sigma[:, None]
+        """``beta_i d^2(S^i, S_m^i)`` of eq. (13): squared scaled distances ``(m, K)`` of values
+        ``(m, K)`` to a template ``(m,)``, or ``(n, m, K)`` of n tracks' values to their templates
+        ``(n, m)``."""
+        d = (values - template[..., None]) / self.sigma[:, None]
         return d * d
 
     def log_likelihoods(self, d2: np.ndarray) -> np.ndarray:

@@ -8,7 +8,8 @@ offset from the sonar, linearised at the prediction (the extended Kalman filter)
 prediction are the shared ones (:mod:`~..tracking.motion`, :mod:`~..tracking.noise`,
 :func:`~..tracking.kalman.predict`); the gate is the chi-square gate of
 :func:`~..tracking.gating.gate_threshold`. Tracks and regions are paired by global nearest
-neighbour (least total squared Mahalanobis distance within the gate, :func:`.management.gated_assignment`). Births, confirmation,
+neighbour (least total squared Mahalanobis distance within the gate,
+:func:`.management.gated_assignment`). Births, confirmation,
 widening while lost and termination follow the GPF tracker's settings (:mod:`.management`), so the
 methods differ only in how they use a frame.
 """

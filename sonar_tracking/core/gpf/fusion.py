@@ -2,7 +2,8 @@
 
 Everything is in the log domain: ``log_p (m, K)`` holds ``ln p(y^i | x_n)`` of eq. (13) for m cues
 and K particles, and the fused ``ln p(y^1..y^m | x_n)`` comes back ``(K,)``, so a product of many
-small likelihoods never underflows and a weighted sum is a log-sum-exp.
+small likelihoods never underflows and a weighted sum is a log-sum-exp. The functions also take
+several tracks at once (leading dimensions, :func:`fuse_many`), with the same result per track.
 
 **Cue spread (eqs. 16-17).** ``A_i`` is the covariance of the particles weighted by cue i's
 likelihood normalised over the particles (eq. 16 uses ``p(y^i | x_n)`` as weights and as a mean,
@@ -46,8 +47,8 @@ MF's weighted position std is below the 0.7 m window (0.38, 0.48, 0.62, 0.65: wo
 when its effective sample size is at least 10 and its mean within 0.35 m of WF's (0.38, 0.40, 0.50,
 0.45), and that test combined with the crossing gate (0.37, 0.39, 0.50, 0.41: no better than the
 gate alone, with two more settings). Confirmed once on seed 2026 (not tuned there; one stream
-per method): AF 0.42 -> 0.37, 0.47 -> 0.40, 0.67 -> 0.61, 0.41 -> 0.40 against WF 0.38, 0.39, 0.57, 0.38 and MF 0.56, 0.56,
-0.65, 0.50, identity kept 87-90 %: AF beats MF everywhere and WF on situation 8, but WF stays
+per method): AF 0.42 -> 0.37, 0.47 -> 0.40, 0.67 -> 0.61, 0.41 -> 0.40 against WF 0.38, 0.39, 0.57, 0.38
+and MF 0.56, 0.56, 0.65, 0.50, identity kept 87-90 %: AF beats MF everywhere and WF on situation 8, but WF stays
 0.01-0.04 m ahead on 9-11 (within the run-to-run noise of a few failure runs). With common random
 numbers across methods (the study's design since, :mod:`sonar_tracking.core.eval.fls_study`) AF is
 within 0.01-0.09 m of WF on 8-11, not better. These figures predate the velocity conditioning of the
@@ -64,7 +65,7 @@ from scipy.special import logsumexp
 from .fuzzy import fuzzy_weights
 
 __all__ = ['MF', 'WF', 'second_target', 'normalise_log', 'cue_weights', 'cue_spreads', 'multiplicative', 'weighted',
-           'Fused', 'fuse']
+           'Fused', 'fuse', 'fuse_many']
 
 #: Values of GPF_TRACK_DTYPE's ``fusion`` field.
 MF, WF = 0, 1
@@ -82,27 +83,28 @@ def normalise_log(log_w: np.ndarray, axis: int = -1) -> np.ndarray:
 
 
 def cue_weights(log_p: np.ndarray) -> np.ndarray:
-    """Each cue's likelihood normalised over the particles, ``(m, K)`` (the weights of eq. 16)."""
-    return normalise_log(log_p, axis=1)
+    """Each cue's likelihood normalised over the particles, ``(..., m, K)`` (the weights of eq. 16)."""
+    return normalise_log(log_p, axis=-1)
 
 
 def cue_spreads(positions: np.ndarray, weights: np.ndarray) -> np.ndarray:
     """``Delta_i`` of eq. (17): Frobenius norm of ``A_i`` of eq. (16), the weighted covariance of the
-    particle positions ``(K, d)`` under each cue's normalised weights ``(m, K)``; shape ``(m,)``."""
-    mean = weights @ positions                                  # (m, d)
-    dev = positions[None, :, :] - mean[:, None, :]              # (m, K, d)
-    A = np.einsum('mk,mka,mkb->mab', weights, dev, dev)
-    return np.sqrt(np.sum(A * A, axis=(1, 2)))
+    particle positions ``(..., K, d)`` under each cue's normalised weights ``(..., m, K)``; shape
+    ``(..., m)``."""
+    mean = weights @ positions                                  # (..., m, d)
+    dev = positions[..., None, :, :] - mean[..., :, None, :]    # (..., m, K, d)
+    A = np.einsum('...mk,...mka,...mkb->...mab', weights, dev, dev)
+    return np.sqrt(np.sum(A * A, axis=(-2, -1)))
 
 
 def multiplicative(log_p: np.ndarray) -> np.ndarray:
-    """Eq. (15): ``ln prod_i p(y^i | x)`` per particle."""
-    return log_p.sum(axis=0)
+    """Eq. (15): ``ln prod_i p(y^i | x)`` per particle, ``(..., K)`` from ``(..., m, K)``."""
+    return log_p.sum(axis=-2)
 
 
 def weighted(log_p: np.ndarray, a: np.ndarray) -> np.ndarray:
-    """Eq. (14): ``ln sum_i a_i p(y^i | x)`` per particle, weights ``a (m,)`` summing to one."""
-    return logsumexp(log_p + np.log(np.asarray(a, dtype=np.float64))[:, None], axis=0)
+    """Eq. (14): ``ln sum_i a_i p(y^i | x)`` per particle, weights ``a (..., m)`` summing to one."""
+    return logsumexp(log_p + np.log(np.asarray(a, dtype=np.float64))[..., None], axis=-2)
 
 
 @dataclass(frozen=True)
@@ -133,14 +135,32 @@ def fuse(log_p: np.ndarray, positions: np.ndarray, thresholds: np.ndarray, mode:
     ``positions (K, d)`` and cue thresholds ``T_i`` ``(m,)`` on the reliability ``Delta_0 / Delta_i``
     (module docstring). ``crowded``: another target is inside the cloud (:func:`second_target`),
     so ``'af'`` is WF whatever the cues say."""
-    k = positions.shape[0]
-    prior = cue_spreads(positions, np.full((1, k), 1.0 / k))[0]
-    inv = prior / np.maximum(cue_spreads(positions, cue_weights(log_p)), 1e-300)
-    if mode == 'af':
-        mode = 'mf' if not crowded and bool(np.all(inv > np.asarray(thresholds))) else 'wf'
-    if mode == 'mf':
-        return Fused(multiplicative(log_p), MF, None, inv)
-    if mode != 'wf':
+    return fuse_many(log_p[None], positions[None], thresholds, mode, np.array([crowded]))[0]
+
+
+def fuse_many(log_p: np.ndarray, positions: np.ndarray, thresholds: np.ndarray, mode: str = 'af',
+              crowded: np.ndarray | None = None) -> list[Fused]:
+    """:func:`fuse` of n tracks at once: ``log_p (n, m, K)``, ``positions (n, K, d)``, ``crowded (n,)``."""
+    if mode not in ('af', 'mf', 'wf'):
         raise ValueError(f'fusion mode {mode!r} must be af, mf or wf')
-    a = fuzzy_weights(inv, thresholds)
-    return Fused(weighted(log_p, a), WF, a, inv)
+    n, k = positions.shape[:2]
+    crowded = np.zeros(n, bool) if crowded is None else np.asarray(crowded, bool)
+    prior = cue_spreads(positions, np.full((n, 1, k), 1.0 / k))[:, 0]
+    inv = prior[:, None] / np.maximum(cue_spreads(positions, cue_weights(log_p)), 1e-300)
+    if mode == 'af':
+        use_mf = ~crowded & np.all(inv > np.asarray(thresholds), axis=1)
+    else:
+        use_mf = np.full(n, mode == 'mf')
+    out: list[Fused | None] = [None] * n
+    mf = np.flatnonzero(use_mf)
+    if mf.size:
+        fused = multiplicative(log_p[mf])
+        for j, i in enumerate(mf):
+            out[i] = Fused(fused[j], MF, None, inv[i])
+    wf = np.flatnonzero(~use_mf)
+    if wf.size:
+        a = fuzzy_weights(inv[wf], thresholds)
+        fused = weighted(log_p[wf], a)
+        for j, i in enumerate(wf):
+            out[i] = Fused(fused[j], WF, a[j], inv[i])
+    return out

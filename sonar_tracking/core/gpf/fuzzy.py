@@ -74,13 +74,14 @@ LEVEL_RATIO = 10.0
 def fuzzy_weights(inverse_spread: np.ndarray, thresholds: np.ndarray) -> np.ndarray:
     """Weights ``a_i`` of eq. (14) (Table 8) from each cue's ``1/Delta_i`` (eq. 17) and ``T_i``.
 
-    Returns ``(m,)`` positive weights summing to 1; one cue gets weight 1.
+    Returns ``(m,)`` positive weights summing to 1 (``(..., m)`` for ``inverse_spread (..., m)``);
+    one cue gets weight 1.
     """
     inv = np.asarray(inverse_spread, dtype=np.float64)
-    m = inv.size
+    m = inv.shape[-1]
     if m == 1:
-        return np.ones(1)
+        return np.ones(inv.shape)
     ratio = inv / np.asarray(thresholds, dtype=np.float64)
-    others = (ratio.sum() - ratio) / (m - 1)
+    others = (ratio.sum(axis=-1, keepdims=True) - ratio) / (m - 1)
     b = LEVEL_RATIO ** (fuzzy_levels(ratio, others) - 3.0)
-    return b / b.sum()
+    return b / b.sum(axis=-1, keepdims=True)

@@ -51,9 +51,12 @@ def _factor(cov: np.ndarray) -> np.ndarray:
         return v * np.sqrt(np.maximum(w, floor))
 
 
-def sample_gaussian(mean: np.ndarray, cov: np.ndarray, k: int, rng: np.random.Generator) -> np.ndarray:
-    """``k`` draws ``(k, n)`` of ``N(mean, cov)``."""
-    z = rng.standard_normal((k, mean.size))
+def sample_gaussian(mean: np.ndarray, cov: np.ndarray, k: int, rng: np.random.Generator | None = None,
+                    z: np.ndarray | None = None) -> np.ndarray:
+    """``k`` draws ``(k, n)`` of ``N(mean, cov)``, from ``rng`` or from given standard normal
+    numbers ``z (k, n)``."""
+    if z is None:
+        z = rng.standard_normal((k, mean.size))
     return mean[None, :] + z @ _factor(cov).T
 
 

@@ -34,6 +34,11 @@
   confirmed track ends after ``lost.max_time`` without its target, a tentative one after
   ``lost.tentative_time``.
   One empty frame therefore never ends a confirmed track.
+* **Leaving coverage (ours).** A track whose estimate has no pixel with data in its window (outside
+  the sonar's fan, where ``/fls/image`` is 0, or outside the image) cannot see its target, and a
+  target that left the fan will not come back where the track coasts. Such a track ends once its
+  estimate has been outside for ``lost.outside_time``, however long ``lost.max_time`` is; a frame
+  whose image holds no data at all (a dropout) neither starts nor stops that clock.
 * **Template (ours).** The template follows the target's changing aspect by exponential
   forgetting, ``S_m <- (1 - rate) S_m + rate S(estimate)``, but only when the estimate matches the
   template well (``template.match``) and no other track's estimate is within ``template.guard``
@@ -51,7 +56,7 @@ from scipy.optimize import linear_sum_assignment
 from .config import BirthConfig, LostConfig, TemplateConfig
 
 __all__ = ['birth_covariance', 'unexplained', 'mahalanobis2', 'gated_assignment', 'reseed_pairs', 'spaced', 'widen',
-           'template_may_update', 'blend_template', 'should_end']
+           'template_may_update', 'blend_template', 'should_end', 'left_coverage']
 
 
 def birth_covariance(xy: np.ndarray, config: BirthConfig, sensor_xy: tuple[float, float] | None = None
@@ -169,3 +174,9 @@ def should_end(confirmed: bool, last_seen: float, stamp: float, config: LostConf
     """Whether a track not seen since ``last_seen`` ends at ``stamp``."""
     limit = config.max_time if confirmed else config.tentative_time
     return stamp - last_seen > limit + 1e-9 or not math.isfinite(stamp - last_seen)
+
+
+def left_coverage(outside_since: float | None, stamp: float, config: LostConfig) -> bool:
+    """Whether a track whose estimate has been outside the sonar's coverage since ``outside_since``
+    (None: it is inside) ends at ``stamp``."""
+    return outside_since is not None and stamp - outside_since >= config.outside_time - 1e-9

@@ -20,6 +20,8 @@ class GpfTrack:
     the target). ``template (m,)`` holds the transformed cue values S_m of eq. (13).
     ``last_weights`` are the normalised particle weights of the last update, ``observed`` the cue
     values at the last estimate; ``particles``/``weights`` are used by the SIR baseline only.
+    ``outside_since`` is the stamp of the first frame of the current run of frames in which the
+    estimate lay outside the sonar's coverage (None while it is inside).
     """
 
     track_id: int
@@ -43,6 +45,7 @@ class GpfTrack:
     weights: np.ndarray | None = None
     particles: np.ndarray | None = None
     template_updates: int = 0
+    outside_since: float | None = None
 
     @property
     def position(self) -> np.ndarray:

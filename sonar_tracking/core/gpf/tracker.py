@@ -9,9 +9,24 @@ Per frame at time t (§4.2.3):
    another track's prediction is inside the track's cloud, ``fusion.switch``), the weights
    normalised and the posterior moments taken (:mod:`.gaussian`); when the estimate does not
    match the template the frame does not update the track and its covariance widens (step 3);
-3. templates follow the targets' aspect where that is safe, tracks lost too long end, regions no
-   track explains start tentative tracks (step 1), and tracks that saw their target in
-   ``birth.confirm_hits`` frames are confirmed (:mod:`.management`).
+3. templates follow the targets' aspect where that is safe, tracks lost too long or outside the
+   sonar's coverage too long end, regions no track explains start tentative tracks (step 1), and
+   tracks that saw their target in ``birth.confirm_hits`` frames are confirmed (:mod:`.management`).
+
+The updates of all tracks are done together: their particles' windows are looked up in one
+batch (:meth:`.cues.CueModel.values`), as are the windows at their estimates, and the random
+numbers are drawn in the same order as one track after the other would draw them, so a frame
+gives the same tracks as updating each track on its own (to the last bit; with cues among f25-f29
+to their round-off, :mod:`~..fls.windows`).
+
+The image is checked (:func:`check_image`): negative pixels are refused, except round-off of the
+image filters (down to ``NEGATIVE_TOLERANCE`` times the image's largest magnitude), which reads as
+0. Window features are measured on the image block-averaged to the coarsest pixel not larger than
+``cues.pixel`` (:func:`.cues.coarsen`; 0.1 m, the pixel the cue scales were calibrated on: a
+0.1 m image is used as it is, a 0.025 m one in blocks of 4 x 4), so the window of ``cues.window``
+metres keeps about the same number of pixels (:func:`.cues.window_pixels`) and the work per
+particle stays bounded however fine the image; the window is capped at :data:`.cues.MAX_WINDOW`
+pixels (with ``cues.pixel`` 0 on a very fine image; reported in :class:`StepReport`).
 
 ``method='sir'`` runs the SIR particle filter baseline (:mod:`.sir`) with exactly the same cues,
 fusion, births and management, so the two differ only in the filter. An image without any data
@@ -32,16 +47,21 @@ from ..fls.windows import WindowImage
 from ..records import GPF_TRACK_DTYPE
 from . import sir
 from .config import GpfConfig
-from .cues import CueModel
-from .fusion import MF, WF, fuse, normalise_log, second_target
+from .cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
+from .fusion import MF, WF, fuse_many, normalise_log, second_target
 from .gaussian import condition_velocity, floor_position, kalman_update, predict, sample_gaussian, weighted_moments
-from .management import (birth_covariance, blend_template, reseed_pairs, should_end, spaced, template_may_update,
-                         unexplained, widen)
+from .management import (birth_covariance, blend_template, left_coverage, reseed_pairs, should_end, spaced,
+                         template_may_update, unexplained, widen)
 from .track import GpfTrack, tracks_to_records
 
-__all__ = ['GpfInputError', 'Frame', 'GpfTracker', 'StepReport', 'regions_xy', 'check_image']
+__all__ = ['GpfInputError', 'Frame', 'GpfTracker', 'StepReport', 'regions_xy', 'check_image', 'NEGATIVE_TOLERANCE']
 
 METHODS = ('gpf', 'sir')
+
+#: Negative pixels down to this fraction of the image's largest magnitude are round-off of the image
+#: filters (-1.5e-15 next to intensities near 1 on recorded frames; a 32FC1 image rounds at about
+#: 1e-7 of its values) and read as 0; below it, refused.
+NEGATIVE_TOLERANCE = 1e-6
 
 
 class GpfInputError(ValueError):
@@ -56,6 +76,7 @@ class Frame:
     grid: ImageGrid
     windows: WindowImage | None
     background: np.ndarray | None
+    window: int = 3
 
     @property
     def empty(self) -> bool:
@@ -78,6 +99,11 @@ class StepReport:
     regions: int = 0
     bad_regions: int = 0
     reseeded: int = 0
+    outside: int = 0
+    ended_outside: int = 0
+    window_pixels: int = 0
+    window_capped: bool = False
+    cue_pixel: float = math.nan
     empty_image: bool = False
     reset: str = ''
     seconds: dict[str, float] = field(default_factory=dict)
@@ -85,7 +111,9 @@ class StepReport:
 
 def check_image(image: np.ndarray, grid: ImageGrid) -> np.ndarray:
     """The image as an array of numbers with the grid's shape, or GpfInputError saying what is wrong
-    (non-finite pixels are left to :meth:`GpfTracker.prepare`, which reads them as no data)."""
+    (non-finite pixels are left to :meth:`GpfTracker.prepare`, which reads them as no data).
+    Negative pixels down to ``NEGATIVE_TOLERANCE`` times the largest finite magnitude are round-off
+    and come back as 0 (in a copy); a more negative pixel is an error."""
     a = np.asarray(image)
     if a.ndim != 2:
         raise GpfInputError(f'image must be 2-D (rows x columns), got shape {a.shape}')
@@ -94,6 +122,18 @@ def check_image(image: np.ndarray, grid: ImageGrid) -> np.ndarray:
                             f'{grid.width}')
     if a.dtype.kind not in 'uif':
         raise GpfInputError(f'image has dtype {a.dtype}; expected numbers (processed intensity, 0 = no data)')
+    if a.dtype.kind == 'u':
+        return a
+    negative = a < 0
+    if negative.any():
+        finite = np.isfinite(a)
+        scale = float(np.max(np.abs(a[finite]))) if finite.any() else 0.0
+        worst = float(a[negative].min())
+        if worst < -NEGATIVE_TOLERANCE * scale:
+            raise GpfInputError(f'image has {int(negative.sum())} negative pixels down to {worst:.3g} (largest '
+                                f'magnitude {scale:.3g}); intensities are >= 0 (0 = no data), round-off of at most '
+                                f'{NEGATIVE_TOLERANCE:g} of the largest magnitude is read as 0')
+        a = np.where(negative, a.dtype.type(0), a)
     return a
 
 
@@ -174,24 +214,28 @@ class GpfTracker:
         for tr in self.tracks:
             self.predict_track(tr, dt)
         t1 = time.perf_counter()
-        frame = self.prepare(img, grid)
+        frame = self._prepare(img, grid)
         rep.empty_image = frame.empty
         wi = frame.windows
+        rep.window_pixels, rep.cue_pixel = frame.window, frame.grid.resolution
+        rep.window_capped = frame.window == MAX_WINDOW and window_pixels(self.config.cues.window,
+                                                                          frame.grid.resolution, None) > MAX_WINDOW
         predicted = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)   # before any update
-        for i, tr in enumerate(self.tracks):
+        for tr in self.tracks:
             tr.stamp = float(stamp)
-            self.update_track(tr, frame, np.delete(predicted, i, axis=0))
-            rep.seen += tr.seen
-            rep.missed += not tr.seen
+        self.update_tracks(self.tracks, frame, [np.delete(predicted, i, axis=0) for i in range(len(self.tracks))])
+        rep.seen = sum(tr.seen for tr in self.tracks)
+        rep.missed = len(self.tracks) - rep.seen
         t2 = time.perf_counter()
         sensor_xy = None if sensor_pose is None else (float(sensor_pose[0]), float(sensor_pose[1]))
         covs = birth_covariance(xy, self.config.birth, sensor_xy)
         if wi is not None:
             rep.reseeded = self._reseed(xy, covs)
-        self._templates(wi, grid)
-        rep.ended = self._end()
+        self._templates(wi)
+        rep.outside = self._coverage(frame)
+        rep.ended, rep.ended_outside = self._end()
         if wi is not None:
-            rep.born = self._births(xy, covs, wi, grid)
+            rep.born = self._births(xy, covs, frame)
         for tr in self.tracks:
             if not tr.confirmed and tr.hits >= self.config.birth.confirm_hits:
                 tr.confirmed = True
@@ -209,14 +253,24 @@ class GpfTracker:
 
     # -- per frame and per track -----------------------------------------------------------------
     def prepare(self, image: np.ndarray, grid: ImageGrid) -> Frame:
-        """The frame's image ready for every track's update: padded for window lookups, and its
-        background features (the median window, :meth:`.cues.CueModel.background`)."""
-        img = check_image(image, grid)
+        """The frame's image ready for every track's update: block-averaged to the cues' pixel
+        (module docstring), padded for window lookups, and its background features (the median
+        window, :meth:`.cues.CueModel.background`). The frame's grid is that of the cues' pixels."""
+        return self._prepare(check_image(image, grid), grid)
+
+    def _prepare(self, img: np.ndarray, grid: ImageGrid) -> Frame:
         valid = np.isfinite(img) & (img > 0)
+        factor = coarsening(self.config.cues.pixel, grid.resolution)
+        if factor > 1:
+            img, grid = coarsen(img, valid, grid, factor)
+            valid = img > 0
+        else:
+            img = np.where(valid, img, 0.0)
+        n = window_pixels(self.config.cues.window, grid.resolution)
         if not valid.any():
-            return Frame(grid, None, None)
-        wi = WindowImage(np.where(valid, img, 0.0), self.feature_config)
-        return Frame(grid, wi, self.cues.background(wi, grid, valid))
+            return Frame(grid, None, None, n)
+        wi = WindowImage(img, self.feature_config, n)
+        return Frame(grid, wi, self.cues.background(wi, grid, valid), n)
 
     def predict_track(self, tr: GpfTrack, dt: float) -> None:
         """Move one track ``dt`` seconds on: GPF eqs. (9)-(12), or the SIR particles."""
@@ -233,10 +287,75 @@ class GpfTracker:
         """Update one (predicted) track on a prepared frame (step 2 of §4.2.3); a frame without data
         or without the target is a miss (step 3). ``others (N, 2)``: the other tracks' predicted
         positions, for the ``crossing`` switch of adaptive fusion (:mod:`.fusion`)."""
+        self.update_tracks([tr], frame, [others])
+
+    def update_tracks(self, tracks: list[GpfTrack], frame: Frame, others: list[np.ndarray | None]) -> None:
+        """:meth:`update_track` of several tracks on one frame, their window lookups batched;
+        the same result as updating them one after the other."""
+        if not tracks:
+            return
         if frame.windows is None:
-            self._miss(tr)
+            for tr in tracks:
+                self._miss(tr)
+            return
+        wi, grid, res = frame.windows, frame.grid, frame.grid.resolution
+        fresh = [tr for tr in tracks if tr.template is None]
+        if fresh:   # the cue set changed: measure the template where the track is
+            values = self.cues.values(wi, grid, np.array([tr.mean[:2] for tr in fresh]), frame.window,
+                                      np.arange(len(fresh)))
+            for j, tr in enumerate(fresh):
+                tr.template = values[:, j]
+        k, n = self.config.particles, len(tracks)
+        if self.method == 'sir':
+            particles = [tr.particles for tr in tracks]
         else:
-            self._update(tr, frame, others)
+            # One draw for all tracks: the numbers each track's sample_gaussian would draw in turn.
+            z = self.rng.standard_normal((n, k, tracks[0].mean.size))
+            particles = [sample_gaussian(tr.mean, tr.cov, k, z=z[i]) for i, tr in enumerate(tracks)]
+        xy = np.concatenate([p[:, :2] for p in particles])
+        values = self.cues.values(wi, grid, xy, frame.window, np.repeat(np.arange(n), k))
+        values = values.reshape(self.cues.m, n, k).transpose(1, 0, 2)                    # (n, m, K)
+        d2 = self.cues.distances2(values, np.array([tr.template for tr in tracks]))
+        f = self.config.fusion
+        crowded = [f.mode == 'af' and f.switch == 'crossing' and second_target(tr.mean, tr.cov, others[i], f.gate)
+                   for i, tr in enumerate(tracks)]
+        # Positions as views of whole particle rows: the layout each track's fuse would see.
+        fusions = fuse_many(self.cues.log_likelihoods(d2), np.stack(particles)[:, :, :2], self.thresholds, f.mode,
+                            np.array(crowded))
+        floor = max(res * res / 12.0, self.config.min_std ** 2)
+        posteriors = []
+        for i, tr in enumerate(tracks):
+            p, fused = particles[i], fusions[i]
+            if self.method == 'sir':
+                w = normalise_log(np.log(tr.weights) + fused.log_likelihood)
+            else:
+                w = normalise_log(fused.log_likelihood)
+            mean, cov = weighted_moments(p, w)
+            cov = floor_position(cov, floor)
+            if self.method != 'sir':            # the SIR keeps its particles' own velocities
+                mean, cov = condition_velocity(tr.mean, tr.cov, mean[:2], cov[:2, :2])
+            posteriors.append((fused, w, mean, cov))
+        observed_all = self.cues.values(wi, grid, np.array([post[2][:2] for post in posteriors]), frame.window,
+                                        np.arange(n))
+        lost = self.config.lost
+        for i, tr in enumerate(tracks):
+            fused, w, mean, cov = posteriors[i]
+            observed = observed_all[:, i]
+            match = float(self.cues.match(self.cues.distances2(observed[:, None], tr.template))[0])
+            distinct = float(self.cues.match(self.cues.distances2(frame.background[:, None], tr.template))[0])
+            tr.match, tr.distinct, tr.last_weights = match, distinct, w
+            tr.inverse_spread, tr.a = fused.inverse_spread, fused.a
+            if not (distinct > lost.distinct and match < lost.ratio * distinct):
+                self._miss(tr)
+                continue
+            tr.mean, tr.cov, tr.fusion = mean, cov, fused.mode
+            tr.seen, tr.misses = True, 0
+            tr.hits += 1
+            tr.last_seen = tr.stamp
+            tr.observed = observed
+            if self.method == 'sir':
+                tr.particles, tr.weights = sir.resample(particles[i], w, self.rng)
+                tr.particles = sir.roughen(tr.particles, floor, self.rng)
 
     def _miss(self, tr: GpfTrack) -> None:
         tr.seen = False
@@ -245,48 +364,8 @@ class GpfTracker:
         if self.method == 'sir':
             tr.particles = sir.spread(tr.particles, tr.weights, self.config.lost.inflation, tr.cov)
 
-    def _update(self, tr: GpfTrack, frame: Frame, others: np.ndarray | None = None) -> None:
-        wi, grid, res = frame.windows, frame.grid, frame.grid.resolution
-        if tr.template is None:   # the cue set changed: measure the template where the track is
-            tr.template = self.cues.values(wi, grid, tr.mean[None, :2])[:, 0]
-        k = self.config.particles
-        if self.method == 'sir':
-            particles = tr.particles
-        else:
-            particles = sample_gaussian(tr.mean, tr.cov, k, self.rng)
-        d2 = self.cues.distances2(self.cues.values(wi, grid, particles[:, :2]), tr.template)
-        f = self.config.fusion
-        crowded = f.switch == 'crossing' and second_target(tr.mean, tr.cov, others, f.gate)
-        fused = fuse(self.cues.log_likelihoods(d2), particles[:, :2], self.thresholds, f.mode, crowded)
-        if self.method == 'sir':
-            w = normalise_log(np.log(tr.weights) + fused.log_likelihood)
-        else:
-            w = normalise_log(fused.log_likelihood)
-        mean, cov = weighted_moments(particles, w)
-        floor = max(res * res / 12.0, self.config.min_std ** 2)
-        cov = floor_position(cov, floor)
-        if self.method != 'sir':            # the SIR keeps its particles' own velocities
-            mean, cov = condition_velocity(tr.mean, tr.cov, mean[:2], cov[:2, :2])
-        observed = self.cues.values(wi, grid, mean[None, :2])[:, 0]
-        match = float(self.cues.match(self.cues.distances2(observed[:, None], tr.template))[0])
-        distinct = float(self.cues.match(self.cues.distances2(frame.background[:, None], tr.template))[0])
-        tr.match, tr.distinct, tr.last_weights = match, distinct, w
-        tr.inverse_spread, tr.a = fused.inverse_spread, fused.a
-        lost = self.config.lost
-        if not (distinct > lost.distinct and match < lost.ratio * distinct):
-            self._miss(tr)
-            return
-        tr.mean, tr.cov, tr.fusion = mean, cov, fused.mode
-        tr.seen, tr.misses = True, 0
-        tr.hits += 1
-        tr.last_seen = tr.stamp
-        tr.observed = observed
-        if self.method == 'sir':
-            tr.particles, tr.weights = sir.resample(particles, w, self.rng)
-            tr.particles = sir.roughen(tr.particles, floor, self.rng)
-
     # -- management -----------------------------------------------------------------------------
-    def _templates(self, wi: WindowImage | None, grid: ImageGrid) -> None:
+    def _templates(self, wi: WindowImage | None) -> None:
         if wi is None or not self.tracks:
             return
         positions = np.array([tr.mean[:2] for tr in self.tracks])
@@ -298,11 +377,34 @@ class GpfTracker:
                 tr.template = blend_template(tr.template, tr.observed, self.config.template.rate)
                 tr.template_updates += 1
 
-    def _end(self) -> int:
-        keep = [tr for tr in self.tracks if not should_end(tr.confirmed, tr.last_seen, tr.stamp, self.config.lost)]
+    def _coverage(self, frame: Frame) -> int:
+        """Mark the tracks whose estimate is outside the sonar's coverage (no pixel with data in its
+        window, :mod:`.management`); returns how many are. A frame without data changes nothing."""
+        if frame.windows is None or not self.tracks:
+            return 0
+        xy = np.array([tr.mean[:2] for tr in self.tracks])
+        r, c = frame.grid.point_to_pixel(xy[:, 0], xy[:, 1])
+        mean = frame.windows.features(pixel_index(r), pixel_index(c), frame.window, (3,))[:, 0]
+        outside = 0
+        for tr, m in zip(self.tracks, mean):
+            if m > 0.0:              # pixels without data are 0, so a mean of 0 means none has data
+                tr.outside_since = None
+            else:
+                outside += 1
+                if tr.outside_since is None:
+                    tr.outside_since = tr.stamp
+        return outside
+
+    def _end(self) -> tuple[int, int]:
+        """End the tracks lost too long or outside the coverage too long; returns how many ended, and
+        how many of them for leaving the coverage."""
+        lost = self.config.lost
+        gone = [left_coverage(tr.outside_since, tr.stamp, lost) for tr in self.tracks]
+        keep = [tr for tr, out in zip(self.tracks, gone)
+                if not out and not should_end(tr.confirmed, tr.last_seen, tr.stamp, lost)]
         ended = len(self.tracks) - len(keep)
         self.tracks = keep
-        return ended
+        return ended, sum(gone)
 
     def _reseed(self, xy: np.ndarray, covs: np.ndarray) -> int:
         """Lost tracks take up free regions in their gate (:mod:`.management`), confirmed tracks
@@ -336,7 +438,7 @@ class GpfTracker:
                 tr.weights = np.full(self.config.particles, 1.0 / self.config.particles)
         return len(pairs)
 
-    def _births(self, xy: np.ndarray, covs: np.ndarray, wi: WindowImage, grid: ImageGrid) -> int:
+    def _births(self, xy: np.ndarray, covs: np.ndarray, frame: Frame) -> int:
         c = self.config.birth
         if len(xy) == 0:
             return 0
@@ -348,7 +450,7 @@ class GpfTracker:
         free = free[:room]
         if free.size == 0:
             return 0
-        templates = self.cues.values(wi, grid, xy[free])
+        templates = self.cues.values(frame.windows, frame.grid, xy[free], frame.window)
         for j, i in enumerate(free):
             mean = np.array([xy[i, 0], xy[i, 1], 0.0, 0.0])
             tr = GpfTrack(track_id=self.next_id, mean=mean, cov=covs[i], template=templates[:, j],

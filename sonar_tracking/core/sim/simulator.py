@@ -3,8 +3,11 @@
 :class:`SimConfig` is the whole configuration (what ``seaking_sim`` exposes as parameters);
 :meth:`SimConfig.for_scenario` gives a scenario's defaults (sensor preset, clutter rate, SNR,
 duration, sensor window). :class:`Simulator` draws the scene's random parts and the per-sector
-noise from two independent streams spawned from the injected generator, so changing how pings are
-grouped into sectors never changes where the targets go.
+noise from two independent streams, so changing how pings are grouped into sectors never changes
+where the targets go. The streams are the first two children of the injected generator's
+``SeedSequence`` (:func:`child_generators`), derived without spawning: a simulation is a function of
+the seed the generator was built from alone, and two simulators given one generator object are
+identical (``Generator.spawn`` would advance the shared sequence and give the second other sectors).
 """
 from __future__ import annotations
 
@@ -23,7 +26,7 @@ from .seaking import SeaKingConfig, SeaKingSonar
 from .sensor import SimSector
 from .structure import OutputConfig, StructureConfig, build_structure, encode_output
 
-__all__ = ['SimConfig', 'Simulator']
+__all__ = ['SimConfig', 'Simulator', 'child_seeds', 'child_generators']
 
 
 @dataclass(frozen=True)
@@ -53,8 +56,8 @@ class SimConfig(Config):
             raise ConfigError(f'scenario {self.scenario} runs on {"/".join(info.sensors)}, not preset {self.preset}')
         kind = self.structure.kind
         if kind != 'none' and (kind == 'harbour') != self.is_harbour:
-            raise ConfigError(f'structure.kind = {kind} is laid out for the '
-                              f'{"harbour" if kind == "harbour" else "SeaKing (tank)"} sensor, not preset {self.preset}')
+            where = 'harbour' if kind == 'harbour' else 'SeaKing (tank)'
+            raise ConfigError(f'structure.kind = {kind} is laid out for the {where} sensor, not preset {self.preset}')
 
     @classmethod
     def for_scenario(cls, scenario: str, preset: str = '', **flat) -> 'SimConfig':
@@ -80,12 +83,28 @@ class SimConfig(Config):
         return self.preset == 'harbour'
 
 
+def child_seeds(seq: np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
+    """The first ``n`` children of ``seq``, as ``seq.spawn(n)`` gives them on a fresh sequence, but
+    without changing ``seq`` (``spawn`` counts its children, so a second call gives others)."""
+    return [np.random.SeedSequence(seq.entropy, spawn_key=tuple(seq.spawn_key) + (i,), pool_size=seq.pool_size)
+            for i in range(n)]
+
+
+def child_generators(rng: np.random.Generator, n: int) -> list[np.random.Generator]:
+    """``n`` independent generators from the first children of ``rng``'s seed sequence
+    (:func:`child_seeds`); ``rng`` and its sequence are left as they are."""
+    seq = rng.bit_generator.seed_seq
+    if not isinstance(seq, np.random.SeedSequence):
+        raise TypeError('the simulator needs a generator built from a seed, e.g. numpy.random.default_rng(seed)')
+    return [np.random.Generator(type(rng.bit_generator)(s)) for s in child_seeds(seq, n)]
+
+
 class Simulator:
     """Sectors of a scenario; ``next_sector()`` returns None once the scenario has ended."""
 
     def __init__(self, config: SimConfig, rng: np.random.Generator) -> None:
         self.config = config
-        scene_rng, self.noise_rng = rng.spawn(2)
+        scene_rng, self.noise_rng = child_generators(rng, 2)
         self.scene: Scene = build_scene(config.scenario, scene_rng, config.clutter_lambda, config.snr_db,
                                         config.duration, config.preset)
         # Drawn after the targets, so a structured scene has the same targets as its plain one.

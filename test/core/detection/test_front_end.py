@@ -18,8 +18,9 @@ from sonar_tracking.core.sector import SectorGeometry
 GEOM = SectorGeometry(angle_min=math.radians(-45.0), angle_increment=math.radians(0.5), n_beams=181,
                       range_min=2.0, range_max=50.0, n_bins=241, scan_time=1.0)
 BAND = (30.0, 31.0)          # seabed band: ranges from the sonar
+# The rules below act from the first scan; the warm-up (tested on its own) would hold the first ones back.
 STRUCTURE = {'esc.enabled': False, 'cells.grouping': 'connected', 'structure.enabled': True,
-             'structure.max_length': 6.0, 'structure.elongated_length': 3.0}
+             'structure.max_length': 6.0, 'structure.elongated_length': 3.0, 'structure.warmup': False}
 
 
 def scene(rng, t, pose=(0.0, 0.0, 0.0), targets=()):
@@ -108,7 +109,7 @@ def test_persistence_alone_vetoes_structure_in_the_papers_cell_mode():
 def test_moving_sonar_uses_both_maps():
     """The sonar drives at 0.5 m/s: the wall is static in the world (world map), the seabed band in
     the sensor frame (sensor map); 'auto' rejects both, each map alone only its own."""
-    flat = {'esc.enabled': False, 'cells.grouping': 'connected', 'structure.enabled': True}
+    flat = {'esc.enabled': False, 'cells.grouping': 'connected', 'structure.enabled': True, 'structure.warmup': False}
     target = ((20.0, -20.0, 0.0, 0.75),)
     results = {m: run(flat | {'structure.map': m}, 60, target, speed=0.5) for m in ('auto', 'sensor', 'world')}
     wall0, band0, _ = run({'esc.enabled': False, 'cells.grouping': 'connected'}, 60, target, speed=0.5)
@@ -165,7 +166,7 @@ def test_blanking_and_max_range_act_on_the_detections():
     (np.zeros(GEOM.shape, np.complex64), 'dtype'),
 ])
 def test_bad_sectors_are_refused_and_nothing_changes(bad, match):
-    det = ActiveDetector(DetectorConfig.from_flat({'structure.enabled': True}))
+    det = ActiveDetector(DetectorConfig.from_flat({'structure.enabled': True, 'structure.warmup': False}))
     with pytest.raises(DetectionInputError, match=match):
         det.process(bad, GEOM)
     assert det.scans == 0 and det.background.polar.columns == 0
@@ -184,11 +185,11 @@ def test_a_sector_blanked_entirely_gives_no_detections_and_esc_goes_on():
 
 def test_reconfigure_keeps_the_threshold_for_intensity_and_structure_changes():
     rng = np.random.default_rng(8)
-    det = ActiveDetector(DetectorConfig.from_flat({'structure.enabled': True}))
+    det = ActiveDetector(DetectorConfig.from_flat({'structure.enabled': True, 'structure.warmup': False}))
     for k in range(5):
         det.process(scene(rng, float(k)), GEOM, stamp=float(k))
     tau, scans = det.threshold, det.scans
-    new = DetectorConfig.from_flat({'structure.enabled': True, 'structure.max_length': 6.0,
+    new = DetectorConfig.from_flat({'structure.enabled': True, 'structure.warmup': False, 'structure.max_length': 6.0,
                                     'intensity.blank_range': 3.0, 'cells.max_detections': 50})
     det.reconfigure(new)
     assert det.threshold == tau and det.scans == scans and det.config is new
@@ -197,3 +198,17 @@ def test_reconfigure_keeps_the_threshold_for_intensity_and_structure_changes():
     assert len(r.detections) <= 50 and r.detections['range'].min() >= 3.0
     with pytest.raises(ValueError, match='new ActiveDetector'):
         det.reconfigure(DetectorConfig.from_flat({'threshold.initial': 4.0}))
+
+
+def test_the_warm_up_outputs_nothing_while_esc_and_the_background_learn():
+    """``structure.warmup``: no detection for ``min_echo_time`` after the start, while ESC adapts as
+    usual; then detections flow."""
+    rng = np.random.default_rng(12)
+    det = ActiveDetector(DetectorConfig.from_flat({'structure.enabled': True, 'structure.min_echo_time': 3.0}))
+    out = []
+    for k in range(8):
+        r = det.process(scene(rng, float(k), targets=((20.0, 0.0, 0.0, 1.0),)), GEOM, stamp=float(k))
+        out.append((r.held, len(r.detections), r.found))
+    assert [h for h, _, _ in out] == [True] * 3 + [False] * 5
+    assert all(n == 0 and found > 0 for _, n, found in out[:3]) and all(n > 0 for _, n, _ in out[3:])
+    assert det.threshold != 3.0, 'ESC adapted during the warm-up'

@@ -1,7 +1,6 @@
 """The ESC paper study machinery: methods, Monte Carlo determinism, summaries, Algorithm 1."""
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest

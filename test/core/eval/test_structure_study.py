@@ -69,5 +69,5 @@ def test_a_short_structured_run_adds_up():
     assert c.frames >= 2
     assert c.on_target == 0 and math.isnan(c.cttr)      # no target in the scene
     assert c.on_target + c.on_structure + c.elsewhere == c.confirmed_tracks
-    with pytest.raises(ValueError, match='no structure'):
-        run_structure_study('fls1', 3, 1)
+    plain = run_structure_study('fls1', 3, 2)           # a plain twin: its tracks are on nothing static
+    assert plain.on_structure == 0 and plain.frames >= 1

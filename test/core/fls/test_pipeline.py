@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from sonar_tracking.core.fls import FlsConfig, FlsInputError, FlsProcessor, region_features
-from sonar_tracking.core.fls.evaluation import score_frames, simulate_frames
+from sonar_tracking.core.eval.fls_segmentation import score_frames, simulate_frames
 from sonar_tracking.core.records import FEATURE_NAMES, REGION_DTYPE
 from sonar_tracking.core.sim import SimConfig, Simulator
 

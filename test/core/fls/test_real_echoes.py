@@ -21,7 +21,9 @@ from sonar_tracking.core.sector import SectorGeometry
 FAN = SectorGeometry(angle_min=math.radians(-14.4), angle_increment=math.radians(0.3), n_beams=97,
                      range_min=1.0, range_max=20.0, n_bins=381, scan_time=0.1)
 WALL_X, BAND, RING = 15.0, (9.0, 9.6), 1.6
-STRUCTURE = {'structure.enabled': True, 'structure.max_length': 6.0, 'structure.elongated_length': 2.5}
+# The rules below act from the first frame; the warm-up (tested on its own) would hold the first ones back.
+STRUCTURE = {'structure.enabled': True, 'structure.max_length': 6.0, 'structure.elongated_length': 2.5,
+             'structure.warmup': False}
 
 
 def intensity(rng, t, targets=(), structure=True, geometry=FAN, pose=(0.0, 0.0)):
@@ -142,7 +144,8 @@ def test_static_structure_regions_are_rejected_and_moving_targets_kept(speed):
 
 
 def test_persistence_alone_rejects_structure_after_min_echo_time():
-    n, structure, seen = run({'structure.enabled': True}, 330, ((12.0, 2.8 + 25.0 * 0.75, 0.0, -0.75),))
+    n, structure, seen = run({'structure.enabled': True, 'structure.warmup': False}, 330,
+                             ((12.0, 2.8 + 25.0 * 0.75, 0.0, -0.75),))
     assert structure[:70].mean() >= 2.0               # nothing vetoed before it echoed 7.5 s
     assert structure[80:].sum() == 0                  # then every structure region
     assert seen.size > 40 and seen.mean() >= 0.95
@@ -176,3 +179,19 @@ def test_max_range_beyond_what_the_image_allows_is_refused_at_construction():
     with pytest.raises(ConfigError, match='image.max_side'):
         FlsConfig.from_flat({'intensity.max_range': 300.0, 'image.resolution': 0.05})
     FlsConfig.from_flat({'intensity.max_range': 100.0, 'image.resolution': 0.05})
+
+
+def test_the_warm_up_holds_every_region_back_until_the_background_can_judge():
+    """With ``structure.warmup`` nothing comes out for ``min_echo_time`` after the start (structure in
+    view from the first ping cannot be told from a target before), then the rules act as usual."""
+    rng = np.random.default_rng(8)
+    p = FlsProcessor(FlsConfig.from_flat(STRUCTURE | {'structure.warmup': True, 'structure.min_echo_time': 3.0}))
+    target = (12.0, 2.5, 0.0, -0.4)                 # in view all along
+    counts = []
+    for k in range(120):
+        t = 0.1 * k
+        for f in p.add_sector(intensity(rng, t, (target,)), FAN, (0.0, 0.0, 0.0), t):
+            counts.append((f.stamp, len(f.regions)))
+    early = [n for s, n in counts if s < 3.0]
+    late = [n for s, n in counts if s >= 3.0]
+    assert early and sum(early) == 0 and len(late) > 50 and np.mean([n >= 1 for n in late]) >= 0.9

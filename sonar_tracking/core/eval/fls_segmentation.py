@@ -1,8 +1,9 @@
 """Simulated FLS frames with ground truth, and how segmentation is scored against it.
 
 :func:`simulate_frames` runs a scenario of :mod:`sonar_tracking.core.sim` through a
-:class:`~.pipeline.FlsProcessor` and labels every frame with each target's noise-free echo in that
-frame (``SeaKingSonar.render_mean`` for that target alone), painted onto the frame's pixels:
+:class:`~..fls.pipeline.FlsProcessor` (:func:`~.fls_frames.processed_frames`) and labels every
+frame with each target's noise-free echo in that frame (``SeaKingSonar.render_mean`` for that
+target alone), painted onto the frame's pixels:
 
 * the target's **peak SNR** in the frame: the largest ratio of its mean echo to the mean
   reverberation over all cells of the sweep (aspect, range and beam position included);
@@ -24,12 +25,13 @@ from typing import Iterator
 import cv2
 import numpy as np
 
+from ..fls.filters import median_blur
+from ..fls.image import canvas_for, grid_image
+from ..fls.pipeline import FlsConfig, FlsFrame, FlsProcessor
+from ..fls.segmentation import threshold_components
 from ..sector import SectorGeometry
-from ..sim import SeaKingSonar, SimConfig, Simulator
-from .filters import median_blur
-from .image import canvas_for, grid_image
-from .pipeline import FlsConfig, FlsFrame, FlsProcessor
-from .segmentation import threshold_components
+from ..sim import SeaKingSonar
+from .fls_frames import processed_frames, simulator_for
 
 __all__ = ['TargetTruth', 'LabelledFrame', 'simulate_frames', 'match_regions', 'FrameScore', 'Score',
            'score_frames', 'plain_segmentation', 'PlainConfig', 'RegionDataset', 'region_dataset']
@@ -59,26 +61,22 @@ class LabelledFrame:
 def simulate_frames(scenario: str, seed: int, config: FlsConfig | None = None, *, preset: str = '',
                     first: int = 0, every: int = 1, max_frames: int | None = None, footprint_db: float = 0.0,
                     match_distance: float = 0.5, **sim_overrides) -> Iterator[LabelledFrame]:
-    """Frames (sweeps) ``first, first + every, ...`` of a SeaKing scenario, processed and labelled.
+    """Frames (sweeps) ``first, first + every, ...`` of a SeaKing scenario, processed and labelled
+    (at most ``max_frames``).
 
     ``seed`` seeds the simulator; ``sim_overrides`` are flat SimConfig settings (``snr_db=15``).
     """
-    sim_cfg = SimConfig.for_scenario(scenario, preset, **sim_overrides)
-    if sim_cfg.is_harbour:
-        raise ValueError(f'scenario {scenario} on the harbour sonar has no FLS images; use a SeaKing preset')
-    sim = Simulator(sim_cfg, np.random.default_rng(seed))
-    twin = SeaKingSonar(sim_cfg.seaking, sim_cfg.sector_size, sim.sensor.amplitude)
+    sim = simulator_for(scenario, seed, preset, **sim_overrides)
+    twin = SeaKingSonar(sim.config.seaking, sim.config.sector_size, sim.sensor.amplitude)
     processor = FlsProcessor(config)
     shapes = {t.target_id: t.shape.name for t in sim.scene.targets}
-    queue: list[tuple] = []   # per sector: (sector, {target_id: snr map}) not yet in a frame
     index = emitted = 0
     level = 10.0 ** (footprint_db / 10.0)
     grow = int(math.ceil(match_distance / processor.config.image.resolution))
     kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * grow + 1, 2 * grow + 1)) if grow > 0 else None
-    while max_frames is None or emitted < max_frames:
-        sector = sim.next_sector()
-        if sector is None:
-            return
+
+    def truth_maps(sector) -> dict:
+        """Per target, its noise-free SNR map in this sector (only for frames that are wanted)."""
         plan = twin.plan()
         # A sector belongs to frame ``index``, or to the next one when it starts a sweep whose
         # predecessor is only emitted now.
@@ -91,15 +89,17 @@ def simulate_frames(scenario: str, seed: int, config: FlsConfig | None = None, *
                     snr = snr[:, ::-1]
                 if snr.max() > 1e-3:
                     maps[target.target_id] = snr.astype(np.float32)
-        queue.append((sector, maps))
-        for frame in processor.add_sector(sector.amplitudes, sector.geometry, sector.pose, sector.stamp):
-            members, queue = queue[:frame.sectors], queue[frame.sectors:]
-            if wanted_frame(index, first, every):
-                yield _label(scenario, seed, frame, members, shapes, level, kernel)
-                emitted += 1
-            index += 1
-            if max_frames is not None and emitted >= max_frames:
-                return
+        return maps
+
+    if max_frames is not None and max_frames <= 0:
+        return
+    for frame, members in processed_frames(sim, processor, truth_maps):
+        if wanted_frame(index, first, every):
+            yield _label(scenario, seed, frame, members, shapes, level, kernel)
+            emitted += 1
+        index += 1
+        if max_frames is not None and emitted >= max_frames:
+            return
 
 
 def wanted_frame(index: int, first: int, every: int) -> bool:
