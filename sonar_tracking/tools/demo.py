@@ -137,7 +137,8 @@ def _run_demo(args: argparse.Namespace, cmd: list[str], bag: Path) -> int:
     print(f'    false                   {len(s["false"]):>6d}   ids {s["false"]}')
     print(f'  scans with a true track   {s["cttr"]:>9.0%}')
     print(f'  position RMSE (eq. 49)    {s["rmse"]:>8.2f} m')
-    print(f'  threshold: first {run["threshold"][0]:.2f}, scan 50 {run["threshold"][min(49, len(run["threshold"]) - 1)]:.2f}, '
+    thresholds = run['threshold']
+    print(f'  threshold: first {thresholds[0]:.2f}, scan 50 {thresholds[min(49, len(thresholds) - 1)]:.2f}, '
           f'final {s["threshold_final"]:.2f}')
     png = _plot(run, s, args.out / 'demo_harbour.png')
     print(f'\nbag: {bag}\nplot: {png.resolve()}')

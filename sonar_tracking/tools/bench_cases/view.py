@@ -7,8 +7,9 @@ and with ``--view --always`` (the view logs every message, no browser), in turn 
 of a shared machine falls on all alike, each run in a DDS domain of its own. A run's sample
 is its seconds per scan in steady state: the span between the ``SKIP``-th and the last ``/tracks``
 message as the recorder received them, over the scans between (the first scans include the
-processes settling, and a view without a browser unsubscribing once the pipeline runs). The ratios of the medians to the plain one are the view's
-cost to the pipeline's throughput. Registered only where the view extra (Rerun) is installed.
+processes settling, and a view without a browser unsubscribing once the pipeline runs). The ratios
+of the medians to the plain one are the view's cost to the pipeline's throughput. Registered only
+where the view extra (Rerun) is installed.
 """
 from __future__ import annotations
 
