@@ -84,7 +84,8 @@ class ExistenceConfig(Config):
     birth: float = setting(0.0, 'P(chi_k | not chi_{k-1}) per scan, eq. (24)', low=0.0, high=1.0)
     initial: float = setting(0.02, 'existence probability of a new track (not in the paper)', low=0.0, high=1.0,
                              low_open=True, high_open=True)
-    confirm: float = setting(0.98, 'T_c: a track is confirmed once its existence exceeds this (not in the paper)', low=0.0,
+    confirm: float = setting(0.98, 'T_c: a track is confirmed once its existence exceeds this (not in the paper)',
+                             low=0.0,
                              high=1.0, low_open=True, high_open=True)
     terminate: float = setting(0.01, 'a track is terminated when its existence falls below this (not in the paper)',
                                low=0.0, high=1.0, high_open=True)

@@ -24,8 +24,9 @@ The output never holds a NaN: a track whose estimate stops being finite is remov
 
 Work and memory per scan are bounded for any input (see :mod:`~sonar_tracking.core.tracking.management`
 for the rules): at most ``init.max_per_scan`` tracks start per scan, at most ``track.max_tracks``
-tracks are kept, at most ``track.max_pairs`` candidate pairs are formed, and they are processed in chunks of at most ``_CHUNK_PAIRS`` (tracks are
-independent IPDAs, so chunking changes no result): the per-pair arrays never exceed a fixed size.
+tracks are kept, at most ``track.max_pairs`` candidate pairs are formed, and they are processed in
+chunks of at most ``_CHUNK_PAIRS`` (tracks are independent IPDAs, so chunking changes no result):
+the per-pair arrays never exceed a fixed size.
 
 Coverage (optional, not in the paper): ``step(..., coverage=...)`` takes the polar window the
 scan covered (:class:`~sonar_tracking.core.tracking.coverage.Coverage`); a track whose estimate

@@ -266,7 +266,7 @@ def _derived(name: str, n_detections: float, previous: str | None = None, size_r
     return derived
 
 
-_prev = None
+_prev, _prev_n = None, 1
 for _n in CLUTTER:
     _name = f'tracking.imm_ipda.c{_n}'
     register(Case(
@@ -278,7 +278,7 @@ for _n in CLUTTER:
         description=f'IMM-IPDA, 3 modes: one scan, 1 CV target (P_D 0.9) + {_n} clutter/scan over 1 km^2 (core)'))
     _prev, _prev_n = _name, _n
 
-_prev = None
+_prev, _prev_k = None, 1
 for _k in TARGETS:
     _name = f'tracking.imm_ipda.t{_k}'
     register(Case(

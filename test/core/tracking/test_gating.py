@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from sonar_tracking.core.tracking import TrackingInputError, candidate_pairs, gate_probability, gate_threshold, innovations
+from sonar_tracking.core.tracking import (TrackingInputError, candidate_pairs, gate_probability, gate_threshold,
+                                          innovations)
 from sonar_tracking.core.tracking import gating
 
 
