@@ -170,7 +170,23 @@ class _Staged:
             self.fd = -1
 
 
-class _McapFile(McapWriter):
+class _Bookkeeping:
+    """What :class:`BagWriter` keeps of each storage file: its connections (added again to the next
+    file after a split) and the stamp of its first message (for ``--split-duration``)."""
+
+    added: list
+    first_timestamp: int | None
+
+    def add_connection(self, connection, offered_qos_profiles: str) -> None:
+        super().add_connection(connection, offered_qos_profiles)
+        self.added.append((connection, offered_qos_profiles))
+
+    def _first(self, timestamp: int) -> None:
+        if self.first_timestamp is None:
+            self.first_timestamp = timestamp
+
+
+class _McapFile(_Bookkeeping, McapWriter):
     """The rosbags MCAP writer, committing every chunk with an open tail behind it (see module doc)."""
 
     def __init__(self, path: Path, sync: bool = True) -> None:   # noqa: D107 - replaces the parent's file handling
@@ -192,13 +208,8 @@ class _McapFile(McapWriter):
         self.first_timestamp: int | None = None
         self.bio.commit()        # an empty but complete MCAP file from the start
 
-    def add_connection(self, connection, offered_qos_profiles: str) -> None:
-        super().add_connection(connection, offered_qos_profiles)
-        self.added.append((connection, offered_qos_profiles))
-
     def write(self, connection, timestamp: int, data) -> None:
-        if self.first_timestamp is None:
-            self.first_timestamp = timestamp
+        self._first(timestamp)
         super().write(connection, timestamp, data)
 
     def close_chunk(self) -> None:
@@ -231,7 +242,7 @@ class _McapFile(McapWriter):
         self.bio.abort()
 
 
-class _SqliteFile(Sqlite3Writer):
+class _SqliteFile(_Bookkeeping, Sqlite3Writer):
     """The rosbags sqlite3 writer in WAL mode, committing and checkpointing at every flush."""
 
     SQLITE_SCHEMA = Sqlite3Writer.SQLITE_SCHEMA.replace("'rosbags'", f"'{ROS_DISTRO}'")
@@ -251,13 +262,8 @@ class _SqliteFile(Sqlite3Writer):
         self.pending_bytes = 0
         self.first_timestamp: int | None = None
 
-    def add_connection(self, connection, offered_qos_profiles: str) -> None:
-        super().add_connection(connection, offered_qos_profiles)
-        self.added.append((connection, offered_qos_profiles))
-
     def write(self, connection, timestamp: int, data) -> None:
-        if self.first_timestamp is None:
-            self.first_timestamp = timestamp
+        self._first(timestamp)
         try:
             super().write(connection, timestamp, data)
         except sqlite3.Error:
