@@ -22,15 +22,17 @@ ROS_SOURCED := $(shell $(PYTHON) -c 'import rclpy' >/dev/null 2>&1 && echo yes)
 # Keep test and demo DDS traffic on this machine.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: all demo test build bench venv clean help
+.PHONY: all demo test test-all test-slow lint interfaces build bench venv clean help view view-deps
 
 all: test
 
 help:
 	@echo "make demo   run the simulated scenario through the pipeline and show the result"
-	@echo "make test   build with colcon and run the whole test suite"
+	@echo "make test   build with colcon, lint (ruff) and run the test suite (all but the tests marked slow)"
+	@echo "make test-all  the same with the slow tests (soak, long studies); CI runs them too"
 	@echo "make build  colcon build into install/ (source install/setup.bash, then run executables)"
 	@echo "make bench  run the benchmarks (sonar_eval bench)"
+	@echo "make view   install the view extra (Rerun) and run sonar_view (VIEW_ARGS=\"--bag out/demo_bag\" for a bag)"
 	@echo "make clean  remove .venv, build/, install/, log/, out/"
 
 venv: $(STAMP)
@@ -49,11 +51,52 @@ build: $(STAMP)
 	$(VENV)/bin/colcon --log-base log build --symlink-install --paths . --build-base build --install-base install
 	@echo "==> built install/sonar_tracking (source install/setup.bash to use it)"
 
-test: build
-	$(VPY) -m pytest test
+# view-deps: sonar_view's tests need its extra, and its browser test Debian's chromium (~25 s here).
+# interfaces: the live imaging-sonar adapter's test needs marine_acoustic_msgs (built once, ~45 s).
+# The suite runs with install/ sourced, as `ros2 run` would.
+TEST_DEPS := build interfaces view-deps lint
+test: $(TEST_DEPS)
+	source install/setup.bash && $(VPY) -m pytest test -m "not slow"
 
+test-slow: $(TEST_DEPS)
+	source install/setup.bash && $(VPY) -m pytest test -m slow
+
+test-all: $(TEST_DEPS)
+	source install/setup.bash && $(VPY) -m pytest test
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+# marine_acoustic_msgs is not among the ROS wheels: generated from its definitions with the Jazzy
+# rosidl wheels, cmake and a C compiler. Where they are missing the live adapter's test says so.
+INTERFACES := install/marine_acoustic_msgs/share/marine_acoustic_msgs/package.xml
+$(INTERFACES): $(STAMP) sonar_tracking/tools/importers/msgdefs.py sonar_tracking/tools/importers/build_interfaces.py
+	$(VPY) -m sonar_tracking.tools.importers.build_interfaces --install-base install \
+		|| echo "warning: marine_acoustic_msgs did not build (cmake and a C compiler needed); the live adapter's test will be skipped" >&2
+
+interfaces: $(INTERFACES)
+
+# The view is an extra: the demo runs (and writes its PNG) without it when it cannot install.
 demo: $(STAMP)
+	@$(MAKE) --no-print-directory $(VIEW_STAMP) || echo "note: the view extra (requirements-view.txt) did not install; the demo runs without the live view"
 	$(VPY) -m sonar_tracking.tools.demo
+
+# sonar_view's extra (Rerun's SDK with its web viewer, ~170 MB), never a dependency of the nodes.
+VIEW_STAMP := $(VENV)/.view-installed
+$(VIEW_STAMP): $(STAMP) requirements-view.txt
+	$(VPY) -m pip install --quiet -r requirements-view.txt
+	touch $@
+
+VIEW_ARGS ?=
+view: $(VIEW_STAMP)
+	$(VENV)/bin/sonar_view $(VIEW_ARGS)
+
+# What the view's browser test needs: the extra, and Debian's chromium (apt-get as root, else sudo -n).
+view-deps: $(VIEW_STAMP)
+	@command -v chromium >/dev/null 2>&1 || { \
+		SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo -n); \
+		$$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q --no-install-recommends chromium \
+		|| echo "warning: chromium did not install; the browser test of sonar_view will be skipped" >&2; }
 
 # Stone Soup is a bench-only extra (the IMM-IPDA comparison), never a runtime dependency.
 bench: $(STAMP)

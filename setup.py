@@ -20,6 +20,7 @@ CONSOLE_SCRIPTS = [
     'bag_record = sonar_tracking.tools.bag_record:main',
     'bag_replay = sonar_tracking.tools.bag_replay:main',
     'sonar_import = sonar_tracking.tools.sonar_import:main',
+    'sonar_view = sonar_tracking.tools.sonar_view:main',
 ]
 
 setup(

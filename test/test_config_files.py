@@ -31,7 +31,8 @@ NODES = {
 
 def parameter_files():
     """ROS parameter files: every YAML in config/ but tables and stack files."""
-    return sorted(p for p in CONFIG.glob('*.yaml') if p.name != 'desired_density.yaml' and not p.name.startswith('stack_'))
+    return sorted(p for p in CONFIG.glob('*.yaml')
+                  if p.name != 'desired_density.yaml' and not p.name.startswith('stack_'))
 
 
 @pytest.mark.parametrize('path', parameter_files(), ids=lambda p: p.name)

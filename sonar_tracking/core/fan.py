@@ -73,11 +73,13 @@ class PolarCanvas:
 
     def pixel_of(self, x: np.ndarray | float, y: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """Fractional ``(row, col)`` of canvas-frame points (pixel centres at integers)."""
-        return (self.x_max - np.asarray(x)) / self.resolution - 0.5, (self.y_max - np.asarray(y)) / self.resolution - 0.5
+        res = self.resolution
+        return (self.x_max - np.asarray(x)) / res - 0.5, (self.y_max - np.asarray(y)) / res - 0.5
 
     def point_of(self, row: np.ndarray | float, col: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
         """Canvas-frame ``(x, y)`` of fractional pixel positions."""
-        return self.x_max - (np.asarray(row) + 0.5) * self.resolution, self.y_max - (np.asarray(col) + 0.5) * self.resolution
+        res = self.resolution
+        return self.x_max - (np.asarray(row) + 0.5) * res, self.y_max - (np.asarray(col) + 0.5) * res
 
     def paint(self, values: np.ndarray, geometry: SectorGeometry,
               pose: tuple[float, float, float] = (0.0, 0.0, 0.0), hold_max: bool = False) -> int:

@@ -1,12 +1,19 @@
-"""``bag_record``: record ROS 2 topics into a rosbag2 (MCAP by default, or sqlite3) with rosbags.
+"""``bag_record``: record ROS 2 topics into a rosbag2 (MCAP by default, or sqlite3) that survives crashes.
 
 Subscriptions are raw (the CDR bytes are written as received, never deserialised) with a deep
 queue, and match each topic's publishers: reliable unless one of them is best effort, transient
 local when all of them are (so latched topics are caught). The publishers' QoS profiles are
 recorded as ``offered_qos_profiles``, so a replay offers the same QoS. Messages are stamped with
-their receive time (the node clock, so ``use_sim_time`` works). The metadata is version 8, which
-ROS 2 Jazzy's ``ros2 bag info`` reads. Without topics, every topic that appears is recorded.
-Ctrl-C or SIGTERM closes the bag cleanly.
+their receive time (the node clock, so ``use_sim_time`` works). Without topics, every topic that
+appears is recorded. Ctrl-C or SIGTERM closes the bag cleanly.
+
+The bag is written by :class:`~sonar_tracking.tools.bag_writer.BagWriter`: everything received is
+on disk (data and ``metadata.yaml``, rosbag2 version 9 as ROS 2 Jazzy writes it) within
+``--flush-interval`` seconds, so ``kill -9`` or a power cut loses at most that much. A full disk
+(or a file size limit) stops the recording with a message: the bag keeps everything flushed before
+and is closed as well as the space allows. ``--split-size`` / ``--split-duration`` start a new file
+when the current one reaches that size or duration, so one damaged file costs only its part.
+``bag_record --repair BAG`` makes a bag left by a killed recorder whole for every reader.
 
 The package's own topics (DESIGN §4) have known types, so they are subscribed at once, before any
 publisher exists (reliable, volatile): a recorder started first misses nothing of a pipeline started
@@ -18,6 +25,7 @@ import argparse
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
 
 __all__ = ['main', 'BagRecorder']
@@ -38,15 +46,21 @@ PACKAGE_TOPICS = {
 
 
 class BagRecorder:
-    """An rclpy node writing subscribed topics into a rosbags Writer."""
+    """An rclpy node writing subscribed topics into a crash-safe :class:`BagWriter`.
 
-    def __init__(self, node, out: Path, storage: str, topics: list[str], depth: int = 1000) -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
+    ``failure`` is set (and nothing more is written) when the storage fails, e.g. the disk is full.
+    """
+
+    def __init__(self, node, out: Path, storage: str, topics: list[str], depth: int = 1000, split_size: int = 0,
+                 split_duration: float = 0.0, flush_interval: float = 0.5) -> None:
         from rosbags.typesys import Stores, get_typestore
+
+        from .bag_writer import BagWriter
         self.node = node
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
-        self.writer = Writer(out, version=8,
-                             storage_plugin=StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3)
+        self.writer = BagWriter(out, storage, split_size=split_size, split_duration=split_duration)
+        self.failure = ''
+        self.lost = 0                             # messages received after a failure
         self.writer.open()
         self.lock = threading.Lock()
         self.wanted = set(topics)
@@ -61,6 +75,9 @@ class BagRecorder:
             self._subscribe(topic, PACKAGE_TOPICS[topic], None)
         self.discover()
         self.timer = node.create_timer(0.5, self.discover)
+        self.flush_interval = flush_interval
+        self.next_flush = time.monotonic() + flush_interval
+        self.flush_timer = node.create_timer(flush_interval, self.flush)
 
     def discover(self) -> None:
         """Subscribe to wanted topics that now have publishers."""
@@ -110,33 +127,107 @@ class BagRecorder:
         return rclpy_types().cls(msgtype)
 
     def _write(self, topic: str, data: bytes) -> None:
+        from .bag_writer import BagWriteError
         stamp = self.node.get_clock().now().nanoseconds
         with self.lock:
-            if self.closed:
+            if self.closed or self.failure:
+                self.lost += not self.closed
                 return
-            self.writer.write(self._connection(topic), stamp, data)
+            try:
+                self.writer.write(self._connection(topic), stamp, data)
+            except BagWriteError as exc:
+                self._fail(exc)
+                return
             self.counts[topic] += 1
+        if time.monotonic() >= self.next_flush:      # due, even while callbacks queue ahead of the timer
+            self.flush()
+
+    def flush(self) -> None:
+        """Put everything received so far on disk (timer callback)."""
+        from .bag_writer import BagWriteError
+        with self.lock:
+            if self.closed or self.failure:
+                return
+            self.next_flush = time.monotonic() + self.flush_interval
+            try:
+                self.writer.flush()
+            except BagWriteError as exc:
+                self._fail(exc)
+
+    def _fail(self, exc: Exception) -> None:
+        self.failure = str(exc)
+        self.lost += 1
+        self.node.get_logger().error(f'recording stopped: {exc}')
 
     def close(self) -> dict[str, int]:
-        """Close the bag (writes metadata.yaml); returns message counts per topic."""
+        """Close the bag (summary and metadata.yaml); returns message counts per topic."""
+        from .bag_writer import BagWriteError
         with self.lock:
             if not self.closed:
                 self.closed = True
-                self.writer.close()
+                try:
+                    self.writer.close()
+                except BagWriteError as exc:
+                    self.failure = self.failure or str(exc)
+                    self.node.get_logger().error(f'the bag could not be closed completely: {exc}')
         return dict(self.counts)
+
+
+def parse_size(text: str) -> int:
+    """Bytes from ``'500M'``, ``'2G'``, ``'100k'`` or a plain number (powers of 1024)."""
+    units = {'k': 1 << 10, 'm': 1 << 20, 'g': 1 << 30, 't': 1 << 40}
+    t = text.strip().lower().removesuffix('ib').removesuffix('b')
+    scale = units.get(t[-1:], 1)
+    try:
+        value = float(t[:-1] if t[-1:] in units else t) * scale
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a size (e.g. 500M, 2G, 1000000)') from None
+    if not value >= 0 or value == float('inf'):
+        raise argparse.ArgumentTypeError(f'{text!r}: a size must be finite and >= 0')
+    return int(value)
+
+
+def _seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'{text!r} is not a number of seconds') from None
+    if not 0 <= value < float('inf'):
+        raise argparse.ArgumentTypeError(f'{text!r}: seconds must be finite and >= 0')
+    return value
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``bag_record``."""
     parser = argparse.ArgumentParser(prog='bag_record', description=__doc__.split('\n\n')[0])
-    parser.add_argument('-o', '--output', type=Path, required=True, help='bag directory to create')
+    parser.add_argument('-o', '--output', type=Path, help='bag directory to create')
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
     parser.add_argument('--depth', type=int, default=1000, help='subscription queue depth (default 1000)')
+    parser.add_argument('--split-size', type=parse_size, default=0, metavar='SIZE',
+                        help='start a new file when the current one reaches SIZE (e.g. 500M, 2G; default: never)')
+    parser.add_argument('--split-duration', type=_seconds, default=0.0, metavar='SECONDS',
+                        help='start a new file after SECONDS of recording in the current one (default: never)')
+    parser.add_argument('--flush-interval', type=_seconds, default=0.5, metavar='SECONDS',
+                        help='put what was received on disk this often; a crash loses at most that much '
+                             '(default 0.5)')
+    parser.add_argument('--repair', type=Path, metavar='BAG',
+                        help='make a bag left by a killed recorder readable by every reader, then exit')
     parser.add_argument('topics', nargs='*', help='topics to record (default: all that appear)')
     args, ros_args = parser.parse_known_args(argv)
+    if args.repair is not None:
+        return _repair(args.repair)
+    if args.output is None:
+        parser.error('-o/--output is required (or --repair BAG)')
+    if args.flush_interval <= 0:
+        parser.error('--flush-interval must be > 0')
+    if args.depth < 1:
+        parser.error('--depth must be >= 1')
     if args.output.exists():
         print(f'error: {args.output} exists already; bag_record never overwrites', file=sys.stderr)
         return 2
+    # A file size limit (ulimit -f) must end the recording like a full disk, not kill the process.
+    if hasattr(signal, 'SIGXFSZ'):
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
     from sonar_tracking.ros.runtime import prepare_process
     prepare_process()
@@ -145,7 +236,15 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.signals import SignalHandlerOptions
     rclpy.init(args=ros_args, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('bag_record')
-    recorder = BagRecorder(node, args.output, args.storage, args.topics, args.depth)
+    from .bag_writer import BagWriteError
+    try:
+        recorder = BagRecorder(node, args.output, args.storage, args.topics, args.depth, args.split_size,
+                               args.split_duration, args.flush_interval)
+    except BagWriteError as exc:
+        print(f'error: cannot start the bag: {exc}', file=sys.stderr)
+        node.destroy_node()
+        rclpy.try_shutdown()
+        return 1
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     stop = threading.Event()
@@ -155,10 +254,10 @@ def main(argv: list[str] | None = None) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     try:
-        while not stop.is_set():
+        while not stop.is_set() and not recorder.failure:
             executor.spin_once(timeout_sec=0.1)
         # Take what is already queued before closing.
-        for _ in range(200):
+        for _ in range(200 if not recorder.failure else 0):
             executor.spin_once(timeout_sec=0.0)
     except ExternalShutdownException:
         pass
@@ -166,8 +265,25 @@ def main(argv: list[str] | None = None) -> int:
         counts = recorder.close()
         node.destroy_node()
         rclpy.try_shutdown()
-    total = sum(counts.values())
-    print(f'bag_record: wrote {total} messages on {len(counts)} topics to {args.output}', file=sys.stderr)
+    on_disk, first, last = recorder.writer.stats()
+    if recorder.failure:
+        print(f'bag_record: recording stopped early: {recorder.failure}. {args.output} holds the {on_disk} messages '
+              f'flushed before ({(last - first) / 1e9:.2f} s); {sum(counts.values()) - on_disk + recorder.lost} '
+              f'received messages are not in it', file=sys.stderr)
+    else:
+        print(f'bag_record: wrote {on_disk} messages on {len(counts)} topics to {args.output}', file=sys.stderr)
+    return 0
+
+
+def _repair(bag: Path) -> int:
+    from .bag_writer import repair
+    try:
+        done = repair(bag)
+    except Exception as exc:  # noqa: BLE001 - whatever stops the repair is reported, not raised
+        print(f'error: cannot repair {bag}: {exc}', file=sys.stderr)
+        return 1
+    for line in done or [f'{bag} was closed by its recorder; nothing to repair']:
+        print(f'bag_record --repair: {line}', file=sys.stderr)
     return 0
 
 

@@ -6,7 +6,8 @@ subscribers acknowledge them (each message waits for all acknowledgements before
 pipeline sees every message in order). ``--clock`` publishes ``/clock`` with the bag's time for
 nodes running with ``use_sim_time``. ``--loop`` plays again and again (time goes back at every
 wrap; the package's nodes treat that as a new recording), ``--repeat N`` plays N times.
-A bag whose MCAP file was cut off is played up to the cut, with a warning.
+A bag its recorder did not close (killed, power cut, full disk) is played up to the last complete
+chunk of each file, with a warning saying how far it goes; split bags are played file after file.
 """
 from __future__ import annotations
 

@@ -5,13 +5,19 @@ harbour sonar (a target manoeuvring from clutter rate lam 1.6 into lam 0.8 at sc
 detector measuring the clutter density near the best track, and the IMM-IPDA tracker, each its own
 process over DDS, the simulator at full speed, everything recorded. It then reads the bag back and
 prints a summary (tracks confirmed, true and false by eqs. 47-48, RMSE, the threshold) and writes a
-PNG of the tracks on the truth and the threshold and clutter density over time.
+PNG of the tracks on the truth and the threshold and clutter density over time. With the view
+extra installed (``requirements-view.txt``; ``make demo`` installs it) it first starts
+``sonar_view`` and prints its address, so the run can be watched in a browser on this machine;
+in a terminal the view stays open after the run until Enter is pressed (``--no-view``: none).
 """
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import shutil
+import signal
+import socket
 import subprocess
 import sys
 import time
@@ -89,6 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='sonar_demo', description=__doc__.split('\n\n')[0])
     parser.add_argument('--out', type=Path, default=Path('out'))
     parser.add_argument('--timeout', type=float, default=110.0)
+    parser.add_argument('--no-view', action='store_true', help='do not start the browser view (sonar_view)')
     args = parser.parse_args(argv)
     from sonar_tracking.resources import config_path
     bag = args.out / 'demo_bag'
@@ -97,6 +104,16 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     cmd = [sys.executable, '-m', 'sonar_tracking.tools.sonar_stack', '--config', str(config_path(STACK)),
            '--record', str(bag)]
+    view = None if args.no_view else _start_view(args.out)
+    try:
+        code = _run_demo(args, cmd, bag)
+    finally:
+        if view is not None:
+            _stop_view(view)
+    return code
+
+
+def _run_demo(args: argparse.Namespace, cmd: list[str], bag: Path) -> int:
     print(f'$ sonar_stack --config config/{STACK} --record {bag}', flush=True)
     t0 = time.monotonic()
     try:
@@ -120,11 +137,65 @@ def main(argv: list[str] | None = None) -> int:
     print(f'    false                   {len(s["false"]):>6d}   ids {s["false"]}')
     print(f'  scans with a true track   {s["cttr"]:>9.0%}')
     print(f'  position RMSE (eq. 49)    {s["rmse"]:>8.2f} m')
-    print(f'  threshold: first {run["threshold"][0]:.2f}, scan 50 {run["threshold"][min(49, len(run["threshold"]) - 1)]:.2f}, '
+    thresholds = run['threshold']
+    print(f'  threshold: first {thresholds[0]:.2f}, scan 50 {thresholds[min(49, len(thresholds) - 1)]:.2f}, '
           f'final {s["threshold_final"]:.2f}')
     png = _plot(run, s, args.out / 'demo_harbour.png')
     print(f'\nbag: {bag}\nplot: {png.resolve()}')
     return 0
+
+
+def _free_port(preferred: int) -> int:
+    """``preferred`` if nothing listens there, else a free port the system picks."""
+    for port in (preferred, 0):
+        with socket.socket() as s:
+            try:
+                s.bind(('127.0.0.1', port))
+            except OSError:
+                continue
+            return s.getsockname()[1]
+    raise OSError('no free port')
+
+
+def _start_view(out: Path) -> subprocess.Popen | None:
+    """Start ``sonar_view`` (if its extra is installed) and print its address once it listens."""
+    from .sonar_stack import _has_view
+    if not _has_view():
+        print('note: no live view (its extra is not installed: `make view` installs it)', flush=True)
+        return None
+    log = out / 'sonar_view.log'
+    with log.open('w') as f:
+        # --always: the whole run stays in the view, for a browser opened during or after it.
+        proc = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.tools.sonar_view', '--always', '--grpc-port',
+                                 str(_free_port(9876)), '--web-port', str(_free_port(9090))],
+                                stdout=f, stderr=subprocess.STDOUT, start_new_session=True,
+                                env=dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1'))
+    deadline = time.monotonic() + 60.0
+    while time.monotonic() < deadline and proc.poll() is None:
+        url = next((line.split(' ', 1)[1] for line in log.read_text().splitlines() if line.startswith('view: ')), None)
+        if url:  # printed once its subscriptions exist, so the simulator waits for it too
+            print(f'view: {url}\n      (open it in a browser on this machine to watch the run)', flush=True)
+            return proc
+        time.sleep(0.1)
+    print(f'note: the live view did not start (see {log}); the demo runs without it', flush=True)
+    _stop_view(proc, keep=False)
+    return None
+
+
+def _stop_view(proc: subprocess.Popen, keep: bool = True) -> None:
+    """Stop the view; in a terminal, first keep it open until Enter so the run can be looked at."""
+    if keep and proc.poll() is None and sys.stdin.isatty():
+        try:
+            input('\nThe view keeps the run: press Enter to close it. ')
+        except (EOFError, KeyboardInterrupt):
+            pass
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(10.0)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
 
 
 def _plot(run: dict, s: dict, path: Path) -> Path:

@@ -29,7 +29,8 @@ Every child's output is printed line by line prefixed with its name. Ctrl-C or S
 SIGINT to every child and waits up to 5 s in all before killing what is left; children also get
 SIGTERM from the kernel if the stack itself dies (Linux ``PR_SET_PDEATHSIG``), so none is left
 behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none),
-started first; nodes with ``wait_for`` then also wait for the recorder to listen.
+started first; nodes with ``wait_for`` then also wait for the recorder to listen. ``--view``
+likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`` passes it options).
 
 Namespaces: ``namespace:`` at the top of the file puts the whole stack there, and a node's own
 ``namespace:`` puts that node there (a relative one under the stack's, an absolute one as it is).
@@ -354,7 +355,7 @@ class _GraphProbe:
         self.context.try_shutdown()
 
 
-def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0) -> int:
+def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0, view: str | None = None) -> int:
     """Start the children, watch them, stop them; returns the stack's exit status."""
     lock = threading.Lock()
     stop = threading.Event()
@@ -384,6 +385,13 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0)
                         waits[spec.name][topic] = waits[spec.name].get(topic, 0) + 1
         specs.insert(0, recorder)
         waits[recorder.name] = {}
+    if view is not None:  # waited topics the view listens to get one more listener
+        from sonar_tracking.tools.view import TOPICS
+        listens = {resolve_name(t, config.namespace) for t in TOPICS}
+        waits = {name: {t: n + (t in listens) for t, n in w.items()} for name, w in waits.items()}
+        specs.insert(0, NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore',
+                                 extra_args=shlex.split(view), namespace=config.namespace))
+        waits['sonar_view'] = {}
     params_dir = tempfile.TemporaryDirectory(prefix='sonar_stack_')
     try:
         return _run(config, specs, waits, Path(params_dir.name), grace, say, lock, stop)
@@ -467,6 +475,8 @@ def main(argv: list[str] | None = None) -> int:
                         help='set a parameter of a node of the stack (repeatable; the value is YAML)')
     parser.add_argument('--namespace', metavar='NS', help='run the whole stack in this namespace, e.g. /auv1')
     parser.add_argument('--record', type=Path, default=None, metavar='DIR', help='also record a bag into DIR')
+    parser.add_argument('--view', nargs='?', const='', default=None, metavar='ARGS',
+                        help='also run sonar_view, the browser view (ARGS: its options, quoted)')
     parser.add_argument('--dry-run', action='store_true', help="print the children's command lines and exit")
     parser.add_argument('--list', action='store_true', help='list the stack files shipped with the package')
     args = parser.parse_args(argv)
@@ -495,7 +505,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.record is not None and args.record.exists():
         print(f'error: {args.record} exists already', file=sys.stderr)
         return 2
-    return run(config, args.record)
+    if args.view is not None and not _has_view():
+        from sonar_tracking.tools.sonar_view import MISSING
+        print(f'error: {MISSING}', file=sys.stderr)
+        return 2
+    return run(config, args.record, view=args.view)
+
+
+def _has_view() -> bool:
+    import importlib.util
+    try:
+        return importlib.util.find_spec('rerun') is not None
+    except (ImportError, ValueError):
+        return False
 
 
 if __name__ == '__main__':

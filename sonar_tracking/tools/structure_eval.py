@@ -5,7 +5,9 @@ with targets per pipeline), the frames run through the sensor's front end and tr
 (:func:`~sonar_tracking.core.eval.structure_study.run_structure_study`) three ways: with
 static-structure rejection (:data:`~sonar_tracking.core.eval.structure_study.STRUCTURE_REJECTION`),
 without it, and, for a ``*_structured`` scene, its structure-free twin with rejection, so the
-targets' CTTR and CLE can be compared. Same seed, same scene and noise in all three.
+targets' CTTR and CLE can be compared. Same seed, same scene and noise in all three. A scene
+without targets runs ``--frames`` frames in one run; a scene with targets runs for its own duration
+(its targets' paths) over seeds ``seed, seed + 1, ...`` until ``--frames`` frames are reached.
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from typing import Any
 
 __all__ = ['add_arguments', 'main_args', 'DEFAULT_SCENARIOS']
 
+NO_TARGETS = ('structure_only', 'clutter')
 DEFAULT_SCENARIOS = ('structure_only:seaking675', 'fls8_structured', 'structure_only:harbour', 'scenario2_structured')
 
 
@@ -24,7 +27,7 @@ def add_arguments(parser: Any) -> None:
     parser.add_argument('--scenarios', nargs='+', default=list(DEFAULT_SCENARIOS), metavar='NAME[:PRESET]',
                         help='structured scenarios, each optionally with its sensor preset (default: '
                              + ' '.join(DEFAULT_SCENARIOS) + ')')
-    parser.add_argument('--frames', type=int, default=100, help='SeaKing sweeps or harbour scans per run (100)')
+    parser.add_argument('--frames', type=int, default=100, help='SeaKing sweeps or harbour scans per row (100)')
     parser.add_argument('--seed', type=int, default=1, help='seed of the scene and its noise (1)')
     parser.add_argument('--json', type=Path, help='write the counts as JSON')
 
@@ -38,7 +41,7 @@ def _row(name: str, rejection: str, c) -> dict:
 def main_args(args: Any) -> int:
     """Run ``sonar_eval structure``; returns the exit status (1 when a rejecting run kept a track on
     structure)."""
-    from sonar_tracking.core.eval.structure_study import STRUCTURE_REJECTION, plain_twin, run_structure_study
+    from sonar_tracking.core.eval.structure_study import STRUCTURE_REJECTION, combine, plain_twin, run_structure_study
     from sonar_tracking.core.sim import SimConfig
     from ._output import write_json
     if args.frames < 1:
@@ -59,8 +62,15 @@ def main_args(args: Any) -> int:
             runs.append((twin, 'on', on))
         for scenario, rejection, front_end in runs:
             print(f'  {scenario}{":" + preset if preset else ""}, rejection {rejection} ...', file=sys.stderr)
-            c = run_structure_study(scenario, args.seed, args.frames, preset, front_end=front_end)
-            rows.append(_row(scenario + (f':{preset}' if preset else ''), rejection, c))
+            cfg = SimConfig.for_scenario(scenario, preset)
+            period = cfg.harbour.scan_period if harbour else cfg.seaking.sweep_time
+            own = max(1, int(cfg.duration / period)) if scenario not in NO_TARGETS else args.frames
+            counts, k = [], 0
+            while sum(c.frames for c in counts) < args.frames:
+                counts.append(run_structure_study(scenario, args.seed + k, min(own, args.frames), preset,
+                                                  front_end=front_end))
+                k += 1
+            rows.append(_row(scenario + (f':{preset}' if preset else ''), rejection, combine(counts)))
     fmt = '{:<30} {:>9} {:>6} {:>9} {:>12} {:>9} {:>6} {:>7}'
     print(fmt.format('scenario', 'rejection', 'frames', 'confirmed', 'on structure', 'elsewhere', 'CTTR', 'CLE'))
     for r in rows:

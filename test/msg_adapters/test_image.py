@@ -80,9 +80,11 @@ def test_float64_is_stored_as_32fc1():
 
 
 @pytest.mark.parametrize('make, match', [
-    (lambda: raw_image(np.zeros((2, 2), np.uint8), 'mono8').__dict__ | {'encoding': 'rgb8'}, 'unsupported image encoding'),
+    (lambda: raw_image(np.zeros((2, 2), np.uint8), 'mono8').__dict__ | {'encoding': 'rgb8'},
+     'unsupported image encoding'),
     (lambda: raw_image(np.zeros((2, 2), np.uint8), 'mono8').__dict__ | {'data': bytes(3)}, 'data is short'),
-    (lambda: raw_image(np.zeros((2, 2), np.uint8), 'mono8').__dict__ | {'data': bytes(5)}, 'does not match|step \\* height'),
+    (lambda: raw_image(np.zeros((2, 2), np.uint8), 'mono8').__dict__ | {'data': bytes(5)},
+     'does not match|step \\* height'),
     (lambda: raw_image(np.zeros((2, 2), np.uint16), 'mono16').__dict__ | {'step': 3}, 'shorter than a row'),
     (lambda: raw_image(np.zeros((2, 2), np.uint16), 'mono16', pad=1).__dict__, 'not a multiple'),
     (lambda: raw_image(np.zeros((2, 2), np.uint8), 'mono8').__dict__ | {'height': 0, 'data': b''}, 'zero size'),

@@ -15,15 +15,18 @@ from sonar_tracking.tools.bench_cases import tracking
 
 def test_cases_limits_and_baselines():
     cases = bench.cases()
-    for key in [f't{n}' for n in tracking.TARGETS] + [f'c{n}' for n in tracking.CLUTTER]:
-        c = cases[f'tracking.imm_ipda.{key}']
+    for n in tracking.CLUTTER:
+        c = cases[f'tracking.imm_ipda.c{n}']
         assert c.self_timed and c.group == 'tracking'
-        assert c.compare_to == (f'tracking.stonesoup.{key}' if key in tracking.STONESOUP else None)
-        assert c.limit_s == tracking.LIMITS.get(key)
-    assert tracking.LIMITS == {'t1': 0.35e-3, 't200': 3e-3, 'c10000': 0.1}
-    for key in tracking.STONESOUP:
-        assert f'tracking.stonesoup.{key}' in cases
-    assert cases['tracking.imm_ipda.d20000'].self_timed
+        assert c.compare_to == ('tracking.stonesoup.c20' if n == 20 else None)
+    for k in tracking.TARGETS:
+        assert cases[f'tracking.imm_ipda.t{k}'].compare_to == ('tracking.stonesoup.t10' if k == 10 else None)
+    assert cases['tracking.imm_ipda.c20'].limit_s == 0.35e-3
+    assert cases['tracking.imm_ipda.c10000'].limit_s == 0.1
+    assert cases['tracking.imm_ipda.t200'].limit_s == 3e-3
+    assert cases[f'tracking.imm_ipda.flood{tracking.FLOOD}'].self_timed
+    for tag in tracking.STONESOUP:
+        assert f'tracking.stonesoup.{tag}' in cases
 
 
 def test_detections_are_seeded_and_shared():
@@ -32,19 +35,27 @@ def test_detections_are_seeded_and_shared():
         assert ta == tb and np.array_equal(za, zb) and np.array_equal(Ra, Rb) and np.array_equal(ra, rb)
     counts = [len(z) for _, z, _, _ in tracking.scans(400, 100)]
     assert 380 < np.mean(counts) < 420 and np.allclose(a[0][3], 50 / 1e6)
-    many = tracking.scans(0, 50, n_targets=200)
-    assert 170 < np.mean([len(z) for _, z, _, _ in many]) < 190          # P_D 0.9 of 200 targets
+    many = tracking.scans(0, 20, n_targets=50)
+    assert 40 < np.mean([len(z) for _, z, _, _ in many]) < 50          # P_D 0.9, no clutter
+    z = many[0][1]
+    assert np.all(np.abs(z) < tracking.HALF) and len(np.unique(np.round(z, 6), axis=0)) == len(z)
 
 
-def test_growth_exponent_is_the_log_log_slope_from_the_previous_row():
-    assert tracking._series_previous('t1') is None and tracking._series_previous('c100') is None
-    prev = tracking._series_previous('c10000')
-    assert prev == ('tracking.imm_ipda.c1000', 1000.0, 10000.0)
-    tracking._STEPPERS['test.growth'] = type('S', (), {'tracks': [1]})()
-    tracking._MEDIANS['tracking.imm_ipda.c1000'] = 1e-3
-    r = bench.Result(name='test.growth', group='tracking', description='', median_s=1e-2, p25_s=0, p75_s=0, min_s=0,
-                     max_s=0, repeats=1, number=1)
-    assert tracking._derived('test.growth', 10000, prev)(r)['growth'] == 1.0
+def test_growth_exponent_from_the_previous_size():
+    tracking._STEPPERS['test.big'] = tracking._STEPPERS['test.small'] = type('S', (), {'tracks': [1]})()
+    small = bench.Result(name='test.small', group='tracking', description='', median_s=1e-3, p25_s=0, p75_s=0,
+                         min_s=0, max_s=0, repeats=1, number=1)
+    tracking._derived('test.small', 10)(small)
+    big = bench.Result(**{**small.__dict__, 'name': 'test.big', 'median_s': 4e-3})
+    assert math.isclose(tracking._derived('test.big', 40, 'test.small', 4.0)(big)['growth'], 1.0)
+
+
+def test_flood_child_reports_times_and_memory(capsys):
+    tracking.flood_child(3000, 3)
+    import json
+    got = json.loads(capsys.readouterr().out)
+    assert len(got['seconds']) == 3 and got['peak_rss_mb'] > 0
+    assert got['max_tracks'] <= 5000 and 0 < got['max_pairs'] <= 100_000
 
 
 def test_our_case_steps_one_scan_per_call():

@@ -2,8 +2,6 @@
 same bag through the core in-process, run after run, and again after ``--repeat`` wraps time back."""
 from __future__ import annotations
 
-import math
-import re
 import subprocess
 import sys
 import time
@@ -32,17 +30,26 @@ SCANS = 30
 @pytest.fixture(scope='module')
 def bag(tmp_path_factory):
     """A short Scenario 1 bag made here from the simulator."""
+    import yaml
     path = tmp_path_factory.mktemp('replay') / 'scenario1'
     topics = ['/sonar/sector', '/sonar/sector_info', '/sonar/truth', '/platform/odometry']
     rec = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.tools.bag_record', '-o', str(path), *topics],
                            stderr=subprocess.PIPE, text=True)
-    time.sleep(2.0)
+    # The simulator waits for a subscriber (the recorder subscribes to the package's topics at once).
     sim = subprocess.run([sys.executable, '-m', 'sonar_tracking.nodes.seaking_sim', '--ros-args', '-p',
                           'scenario:=scenario1', '-p', 'rate:=0.0', '-p', f'duration:={SCANS}.0', '-p',
                           'wait_for_subscribers:=1', '-p', 'shutdown_when_done:=true'], capture_output=True,
                          text=True, timeout=120)
     assert sim.returncode == 0, sim.stderr
-    time.sleep(1.0)
+
+    def on_disk():   # the recorder rewrites the metadata at every flush
+        try:
+            return yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']['message_count']
+        except (OSError, KeyError, TypeError, yaml.YAMLError):
+            return 0
+    deadline = time.monotonic() + 20.0
+    while on_disk() < 4 * SCANS and time.monotonic() < deadline:
+        time.sleep(0.05)
     rec.send_signal(2)
     rec.communicate(timeout=20)
     assert sum(1 for m in read_bag(path) if m.topic == '/sonar/sector') == SCANS

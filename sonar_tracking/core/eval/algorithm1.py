@@ -32,7 +32,7 @@ from ..detection.scmde import PolarWindow
 from ..sim.amplitude import snr_linear
 from ..sim.motion import ScriptedTrajectory
 from ..sim.presets import HARBOUR_SONAR_XY
-from ..tracking.config import TrackerConfig
+from ..tracking.config import PAPER_INITIATION, TrackerConfig
 from ..tracking.tracker import ImmIpdaTracker
 from .confirmation import T_GRID, ConfirmationSweep
 from .esc_study import resolution_cell_area
@@ -83,6 +83,7 @@ def run_candidate(item: tuple[Algorithm1Config, float, float], seed: np.random.S
     window = PolarWindow(*cfg.window)
     flat = {'imm.models': cfg.models, 'detection.probability': pd, 'clutter.source': 'constant',
             'clutter.density': rho, 'existence.confirm': float(T_GRID[0])}
+    flat.update(PAPER_INITIATION)   # the paper's one-point initiation (core.tracking.config)
     flat.update(cfg.tracker)
     trk = ImmIpdaTracker(TrackerConfig.from_flat(flat))
     target = ScriptedTrajectory(50.0, 200.0, 12.0 / math.sqrt(2.0), 12.0 / math.sqrt(2.0))

@@ -32,7 +32,7 @@ from ..detection import ActiveDetector, DetectorConfig, convert_measurements
 from ..sim import SimConfig, Simulator
 from ..sim.amplitude import snr_linear
 from ..sim.presets import HARBOUR_SONAR_XY
-from ..tracking.config import TrackerConfig
+from ..tracking.config import PAPER_INITIATION, TrackerConfig
 from ..tracking.tracker import ImmIpdaTracker
 from .confirmation import T_GRID, ConfirmationSweep
 from .metrics import (classify_tracks, confirmed_false_track_rate, confirmed_true_track_rate, evaluate_scan,
@@ -119,7 +119,7 @@ class StudyConfig:
 
 
 def _tracker(study: StudyConfig, pd: float) -> ImmIpdaTracker:
-    flat = {'imm.models': study.models, 'detection.probability': pd}
+    flat = {'imm.models': study.models, 'detection.probability': pd, **PAPER_INITIATION}
     if study.sweep_tc:
         flat['existence.confirm'] = float(T_GRID[0])
     elif study.confirm is not None:

@@ -37,8 +37,8 @@ from .motion import DraggedTrajectory, ScriptedTrajectory, Segment, StaticTrajec
 from .scene import ClutterRegion, Scene, Target
 from .shapes import shape
 
-__all__ = ['SENSOR_PRESETS', 'STRUCTURE_PRESETS', 'SCENARIOS', 'ScenarioInfo', 'scenario_info', 'build_scene', 'FLS_TARGETS',
-           'HARBOUR_SONAR_XY']
+__all__ = ['SENSOR_PRESETS', 'STRUCTURE_PRESETS', 'SCENARIOS', 'ScenarioInfo', 'scenario_info', 'build_scene',
+           'FLS_TARGETS', 'HARBOUR_SONAR_XY']
 
 #: Flat setting overrides of each sensor preset (names as in SimConfig).
 SENSOR_PRESETS: dict[str, dict] = {

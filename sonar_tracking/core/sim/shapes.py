@@ -3,10 +3,11 @@ reflector, sphere, plus an ideal point.
 
 A shape is a set of scatterers in the body frame (x along the body heading). Flat faces are rows
 of facet scatterers whose echo is mostly specular, ``cos(incidence) ** n``, with a diffuse share
-``~cos(incidence)``, and vanishes when the face looks away; corners are weak, broad scatterers. So a cube seen face-on gives one bright line, but
-seen corner-on gives a few separate weak spots: one target, several unconnected regions (FLS
-paper §2, drawback 2). The sphere's steep, outward-facing facets reduce to the specular point
-facing the sonar. Weights are normalised so the strongest aspect returns a total of 1.
+``~cos(incidence)``, and vanishes when the face looks away; corners are weak, broad scatterers. So a
+cube seen face-on gives one bright line, but seen corner-on gives a few separate weak spots: one
+target, several unconnected regions (FLS paper §2, drawback 2). The sphere's steep, outward-facing
+facets reduce to the specular point facing the sonar. Weights are normalised so the strongest
+aspect returns a total of 1.
 """
 from __future__ import annotations
 

@@ -65,7 +65,8 @@ TANK_WALLS = (((28.5, -8.0), (28.5, 8.0)), ((-1.0, 8.0), (28.5, 8.0)), ((-1.0, -
 _BREAKWATER = math.radians(21.0)
 #: Harbour walls: the quay and the breakwater along the sector's left edge.
 HARBOUR_WALLS = (((1150.0, -100.0), (1150.0, 1000.0)),
-                 tuple((HARBOUR_SONAR_XY[0] + r * math.cos(_BREAKWATER), HARBOUR_SONAR_XY[1] + r * math.sin(_BREAKWATER))
+                 tuple((HARBOUR_SONAR_XY[0] + r * math.cos(_BREAKWATER),
+                        HARBOUR_SONAR_XY[1] + r * math.sin(_BREAKWATER))
                        for r in (1850.0, 3250.0)))
 #: Harbour pile field: 5 x 3 piles 40 m apart.
 HARBOUR_PILES = tuple((x, y) for x in (600.0, 640.0, 680.0, 720.0, 760.0) for y in (60.0, 100.0, 140.0))

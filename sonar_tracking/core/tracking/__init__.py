@@ -6,7 +6,8 @@
   (eqs. 17-20, 41-42), :mod:`.kalman` prediction (eqs. 22-23),
 * :mod:`.gating` gates and likelihoods (eqs. 25-28), :mod:`.ipda` the update (eqs. 28-40),
 * :mod:`.measurements` input checks, :mod:`.management` initiation, confirmation, termination,
-* :mod:`.config` settings, :mod:`.tracker` the tracker that wires them together.
+* :mod:`.coverage` the area a scan covered, :mod:`.config` settings, :mod:`.tracker` the tracker
+  that wires them together.
 
 Array layout. The per-track arrays of :mod:`.imm`, :mod:`.kalman`, :mod:`.gaussian`,
 :mod:`.ipda` and the per-pair arrays of :mod:`.gating` are component-major with tracks (or
@@ -17,6 +18,7 @@ in as ``z (N, d)``, ``R (N, d, d)``, and :meth:`.ImmIpdaTracker.estimates` /
 :meth:`.ImmIpdaTracker.mode_states` give tracks-first copies.
 """
 from .config import MODE_NAMES, TrackerConfig
+from .coverage import Coverage
 from .errors import TrackingError, TrackingInputError
 from .gating import candidate_pairs, gate_probability, gate_threshold, innovations
 from .gaussian import moment_match
@@ -30,7 +32,7 @@ from .motion import ConstantTurn, ConstantVelocity, MotionModel, position_matrix
 from .noise import white_noise_acceleration
 from .tracker import ImmIpdaTracker, Mode, StepReport, modes_from_config
 
-__all__ = ['MODE_NAMES', 'TrackerConfig', 'TrackingError', 'TrackingInputError', 'candidate_pairs',
+__all__ = ['MODE_NAMES', 'TrackerConfig', 'Coverage', 'TrackingError', 'TrackingInputError', 'candidate_pairs',
            'gate_probability', 'gate_threshold', 'innovations', 'moment_match', 'combine', 'interaction',
            'ipda_update', 'predict', 'initial_covariance', 'mode_transition_matrix', 'predict_existence',
            'update_existence', 'Rejection', 'check_measurements', 'ConstantTurn', 'ConstantVelocity',

@@ -15,8 +15,12 @@ from dataclasses import dataclass
 from ..config import Config, ConfigError, setting
 
 __all__ = ['ImmConfig', 'DetectionConfig', 'ClutterConfig', 'ExistenceConfig', 'InitConfig', 'TrackConfig',
-           'TrackerConfig', 'MODE_NAMES']
+           'TrackerConfig', 'MODE_NAMES', 'PAPER_INITIATION']
 
+#: The paper's one-point initiation (a track from every detection no confirmed track validated);
+#: studies reproducing the ESC paper merge this into their settings (the default, ``all``, starts
+#: none from a detection a tentative track validated: bounded in clutter, lower CTTR in dense clutter).
+PAPER_INITIATION = {'init.exclude': 'confirmed'}
 #: Mode names the tracker knows; ``TRACK_DTYPE`` has one probability field per name.
 MODE_NAMES = ('cv', 'ccw', 'cw')
 #: Mode sets ``imm.models`` accepts: any non-empty subset, in the order above.
@@ -80,7 +84,8 @@ class ExistenceConfig(Config):
     birth: float = setting(0.0, 'P(chi_k | not chi_{k-1}) per scan, eq. (24)', low=0.0, high=1.0)
     initial: float = setting(0.02, 'existence probability of a new track (not in the paper)', low=0.0, high=1.0,
                              low_open=True, high_open=True)
-    confirm: float = setting(0.98, 'T_c: a track is confirmed once its existence exceeds this (not in the paper)', low=0.0,
+    confirm: float = setting(0.98, 'T_c: a track is confirmed once its existence exceeds this (not in the paper)',
+                             low=0.0,
                              high=1.0, low_open=True, high_open=True)
     terminate: float = setting(0.01, 'a track is terminated when its existence falls below this (not in the paper)',
                                low=0.0, high=1.0, high_open=True)
@@ -94,33 +99,35 @@ class ExistenceConfig(Config):
 
 @dataclass(frozen=True)
 class InitConfig(Config):
-    """One-point track initiation: position from the measurement, velocity from a prior."""
+    """One-point track initiation: position from the measurement, velocity from a prior; a budget per scan."""
 
     speed_max: float = setting(15.0, 'largest target speed; each velocity component of a new track has '
                                'mean 0 and variance speed_max^2 / 3', unit='m/s', low=0.0, high=1e4, low_open=True)
-    min_ratio: float = setting(0.1, 'an unused detection starts a track only where P_D times the expected target '
-                               'likelihood in the new track\'s first gate is at least this multiple of the clutter '
-                               'density there (bounds a new gate to gamma P_D / (4 min_ratio) clutter); 0 = always',
-                               low=0.0, high=1e6)
+    exclude: str = setting('all', 'detections validated by these tracks start no track: confirmed = the paper\'s '
+                           'one-point initiation (every detection no confirmed track validated), all = also '
+                           'those in a tentative track\'s gate (tentative tracks grow with the area covered, not '
+                           'with the clutter)', choices=('all', 'confirmed'))
+    max_per_scan: int = setting(1000, 'most tracks started per scan; when more detections are unused, those no '
+                                'track validated come first, then the lowest clutter density (see management); '
+                                'the paper studies set it high enough never to bind', low=0, high=10_000_000)
 
 
 @dataclass(frozen=True)
 class TrackConfig(Config):
-    """Track bookkeeping beyond the paper: duplicates, a cap on tracks, long gaps."""
+    """Track bookkeeping beyond the paper: duplicates, caps on tracks and pairs, coverage, long gaps."""
 
     merge_threshold: float = setting(9.49, 'a track whose state lies within this squared Mahalanobis distance '
                                      '(summed covariances, 4 dof) of an older confirmed track is removed as a '
                                      'duplicate; 0 = never', low=0.0, high=1e6)
     max_position_std: float = setting(30.0, 'a track whose position std (largest axis) exceeds this is terminated: '
                                       'it no longer follows anything', unit='m', low=0.0, high=1e9, low_open=True)
-    max_tracks: int = setting(5000, 'most tracks kept; beyond, the least likely tentative tracks are dropped',
-                              low=1, high=10_000_000)
-    max_pairs: int = setting(200_000, 'most candidate track-detection pairs per scan (bounds memory: about 2 kB '
-                             'each); beyond, the least likely tentative tracks get no pairs and are removed',
-                             low=1, high=1_000_000_000)
-    max_time_outside: float = setting(10.0, 'a track whose position has been outside the sensor coverage (when the '
-                                      'caller passes it) for longer than this is terminated; 0 = at once',
-                                      unit='s', low=0.0, high=1e9)
+    max_tracks: int = setting(5000, 'most tracks kept after each scan (new ones included); beyond, the least '
+                              'likely tentative tracks are dropped', low=1, high=10_000_000)
+    max_pairs: int = setting(100_000, 'most track-detection candidate pairs per scan; beyond, the tentative '
+                             'tracks with the most candidates (densest clutter) are dropped first, then '
+                             'confirmed ones', low=1, high=1_000_000_000)
+    outside_time: float = setting(10.0, 'a track whose estimate has been outside the sensor coverage passed to '
+                                  'step() for this long ends', unit='s', low=0.0, high=1e9)
     max_gap: float = setting(60.0, 'a scan more than this after the previous one restarts the tracker',
                              unit='s', low=0.0, high=1e9, low_open=True)
 

@@ -28,7 +28,7 @@ from scipy.special import gammainc, gammaincinv
 
 from .errors import TrackingInputError
 
-__all__ = ['gate_threshold', 'gate_probability', 'candidate_pairs', 'budgeted_pairs', 'gate_boxes', 'Innovations',
+__all__ = ['gate_threshold', 'gate_probability', 'candidate_pairs', 'candidate_counts', 'gate_boxes', 'Innovations',
            'innovations', 'gaussian_density']
 
 
@@ -78,63 +78,64 @@ def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.n
     """Pairs ``(track, measurement)`` whose measurement lies inside the track's box.
 
     ``lo, hi (T, d)``, ``z (N, d)``. Returns index arrays sorted by track (the order the IPDA
-    reductions rely on). :func:`budgeted_pairs` without a budget.
-    """
-    track, meas, _ = budgeted_pairs(lo, hi, z)
-    return track, meas
-
-
-def _keep_within(per_track: np.ndarray, budget: float, priority) -> np.ndarray:
-    """Mask of the tracks kept when each costs ``per_track`` and at most ``budget`` may be spent.
-
-    Tracks are taken in ``priority`` order (indices, most important first; default index order)
-    while the running total stays within the budget.
-    """
-    order = np.arange(len(per_track)) if priority is None else priority() if callable(priority) else priority
-    keep = np.zeros(len(per_track), dtype=bool)
-    keep[order[np.cumsum(per_track[order]) <= budget]] = True
-    return keep
-
-
-def budgeted_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray, max_pairs: int | None = None,
-                   priority=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pairs ``(track, measurement)`` whose measurement lies inside the track's box, within a budget.
-
-    ``lo, hi (T, d)``, ``z (N, d)``. Returns index arrays sorted by track (the order the IPDA
-    reductions rely on) and a ``(T,)`` mask of the tracks left out because the budget was spent.
+    reductions rely on).
 
     Measurements are binned into strips along the first axis (as wide as the mean box, and
     never more strips than measurements) and sorted by (strip, second coordinate); each track
     looks up, in every strip its box overlaps, the measurements within its second-axis range by
     binary search. Only those are checked against the box, so the work follows the pairs that
     can gate rather than tracks x measurements.
-
-    ``max_pairs`` bounds memory for any input: the candidates of each track are counted before
-    any pair is materialised, and when their total (or the number of strip look-ups) exceeds the
-    budget, tracks are taken in ``priority`` order (indices, most important first, or a callable
-    returning them, called only then) while the total fits; the others get no pairs and are flagged in the returned mask.
     """
     n_tracks, n_meas = lo.shape[0], z.shape[0]
     empty = np.zeros(0, dtype=np.intp)
-    left_out = np.zeros(n_tracks, dtype=bool)
     if n_tracks == 0 or n_meas == 0:
-        return empty, empty, left_out
-    budget = math.inf if max_pairs is None else max_pairs
+        return empty, empty
     if not (np.isfinite(lo).all() and np.isfinite(hi).all()):   # no gate: every pair
-        keep = _keep_within(np.full(n_tracks, n_meas), budget, priority)
-        kept = np.flatnonzero(keep)
-        return np.repeat(kept, n_meas), np.tile(np.arange(n_meas), len(kept)), ~keep
+        return np.repeat(np.arange(n_tracks), n_meas), np.tile(np.arange(n_meas), n_tracks)
     if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS:                   # small: test every box at once
-        inside = (z[:, 0] >= lo[:, 0, None]) & (z[:, 0] <= hi[:, 0, None])
-        for j in range(1, z.shape[1]):
-            inside &= (z[:, j] >= lo[:, j, None]) & (z[:, j] <= hi[:, j, None])
-        per_track = np.count_nonzero(inside, axis=1)
-        if per_track.sum() > budget:
-            keep = _keep_within(per_track, budget, priority)
-            inside &= keep[:, None]
-            left_out = ~keep
-        track, meas = np.nonzero(inside)
-        return track, meas, left_out
+        track, meas = np.nonzero(_inside(lo, hi, z))
+        return track, meas
+    order, tr, first, count = _strip_search(lo, hi, z)
+    track = np.repeat(tr, count)
+    start = np.cumsum(count) - count
+    meas = order[np.arange(len(track)) - np.repeat(start - first, count)]
+    keep = (z[meas, 0] >= lo[track, 0]) & (z[meas, 0] <= hi[track, 0])
+    for j in range(1, z.shape[1]):
+        zj = z[meas, j]
+        keep &= (zj >= lo[track, j]) & (zj <= hi[track, j])
+    return track[keep], meas[keep]
+
+
+def candidate_counts(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``(T,)`` upper bound on the pairs :func:`candidate_pairs` returns per track, without building them.
+
+    Counts the measurements of the strip search (before the exact box test), so the cost is
+    that of the binary searches, not of the pairs.
+    """
+    n_tracks, n_meas = lo.shape[0], z.shape[0]
+    if n_tracks == 0 or n_meas == 0:
+        return np.zeros(n_tracks, dtype=np.intp)
+    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+        return np.full(n_tracks, n_meas, dtype=np.intp)
+    if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS:
+        return np.count_nonzero(_inside(lo, hi, z), axis=1)
+    _, tr, _, count = _strip_search(lo, hi, z)
+    return np.bincount(tr, weights=count, minlength=n_tracks).astype(np.intp)
+
+
+def _inside(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """``(T, N)`` bool: measurement n lies in box t."""
+    inside = (z[:, 0] >= lo[:, 0, None]) & (z[:, 0] <= hi[:, 0, None])
+    for j in range(1, z.shape[1]):
+        inside &= (z[:, j] >= lo[:, j, None]) & (z[:, j] <= hi[:, j, None])
+    return inside
+
+
+def _strip_search(lo: np.ndarray, hi: np.ndarray, z: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The strip search of :func:`candidate_pairs`: measurement ``order`` and, per (track, strip)
+    the box overlaps, the track ``tr``, the ``first`` position in ``order`` and the ``count``."""
+    n_tracks, n_meas = lo.shape[0], z.shape[0]
     zx = z[:, 0]
     zy = z[:, 1] if z.shape[1] > 1 else np.zeros(n_meas)
     x0, span_x = zx.min(), zx.max() - zx.min()
@@ -150,10 +151,6 @@ def budgeted_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray, max_pairs: int
     s_lo = np.clip(np.floor((lo[:, 0] - x0) / width), 0, n_strips - 1).astype(np.intp)
     s_hi = np.clip(np.floor((hi[:, 0] - x0) / width), -1, n_strips - 1).astype(np.intp)
     ns = np.maximum(s_hi - s_lo + 1, 0)
-    if ns.sum() > budget:                                         # strip look-ups alone exceed it
-        keep = _keep_within(ns, budget, priority)
-        ns[~keep] = 0
-        left_out |= ~keep
     tr = np.repeat(np.arange(n_tracks), ns)
     st = np.arange(len(tr)) - np.repeat(np.cumsum(ns) - ns - s_lo, ns)
     if z.shape[1] > 1:
@@ -163,18 +160,7 @@ def budgeted_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray, max_pairs: int
         ylo, yhi = np.zeros(len(tr)), np.zeros(len(tr))
     first = np.searchsorted(keys, st * span_y + ylo, side='left')
     count = np.maximum(np.searchsorted(keys, st * span_y + yhi, side='right') - first, 0)
-    if count.sum() > budget:
-        keep = _keep_within(np.bincount(tr, weights=count, minlength=n_tracks), budget, priority)
-        count[~keep[tr]] = 0
-        left_out |= ~keep
-    track = np.repeat(tr, count)
-    start = np.cumsum(count) - count
-    meas = order[np.arange(len(track)) - np.repeat(start - first, count)]
-    keep = (zx[meas] >= lo[track, 0]) & (zx[meas] <= hi[track, 0])
-    for j in range(1, z.shape[1]):
-        zj = z[meas, j]
-        keep &= (zj >= lo[track, j]) & (zj <= hi[track, j])
-    return track[keep], meas[keep], left_out
+    return order, tr, first, count
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,8 @@
 """Track management: one-point initiation, confirmation, termination, duplicates, a cap.
 
-Initiation (one-point, with a velocity prior). Every measurement that no confirmed track
-validated (eq. 25) starts a tentative track at the measurement with velocity mean zero and
+Initiation (one-point, with a velocity prior). Every measurement that no track validated
+(eq. 25; with ``init.exclude: confirmed``, the paper's rule: no confirmed track) starts a
+tentative track at the measurement with velocity mean zero and
 variance ``speed_max^2 / 3`` per component (the moments of a component uniform on
 ``[-speed_max, speed_max]``; Musicki & Song, "Track initialization: prior target velocity and
 acceleration moments", IEEE TAES 2013). We chose it over two-point differencing because:
@@ -16,18 +17,46 @@ acceleration moments", IEEE TAES 2013). We chose it over two-point differencing 
 * ``P_{0|0} = diag(R, speed_max^2/3 I)`` is well defined, which false-track discrimination
   (eqs. 47-48) needs.
 
+Which measurements start tracks (``init.exclude``, not in the paper). With ``confirmed`` a
+measurement inside a tentative track's gate starts one more track, so every clutter detection
+does: tentative tracks grow with the clutter and, their gates holding more detections the denser
+it is, the pairs with its square. With ``all`` (the default) a measurement some track already
+validated starts none: that track is already testing the hypothesis that a target is there, and
+PDA moves it to the target if one is. Tentative tracks then cover the surveillance area once
+(about its area over a new track's gate area, however dense the clutter), and the pairs grow
+with the clutter. Measured on the paper's scenarios, in docs/tracker_scaling.md.
+
+Initiation budget (not in the paper). One-point initiation starts a track on every unused
+detection, and each new track's gate is wide (the velocity prior), so in dense clutter the next
+scan pairs T = N tracks with many detections each: work grows with the square of the clutter.
+At most ``init.max_per_scan`` tracks start per scan. When more detections are unused, the ones
+that start tracks are chosen by how likely they are to be a new target:
+
+1. detections that no track (tentative or confirmed) validated come first: one inside a
+   tentative track's gate is already being followed as a possible target;
+2. then the lowest clutter density ``rho`` (SCMDE): IPDA's existence update (eqs. 33, 40) grows
+   with ``p / rho``, so a track born in dense clutter is the least likely to be confirmed;
+3. then the detection order (the detector lists the strongest first).
+
+When fewer detections are unused than the budget (the paper's scenarios), every one starts a
+track, which is the paper's one-point initiation.
+
+Caps (not in the paper). After initiation, at most ``track.max_tracks`` tracks are kept (the
+least likely tentative ones go, :func:`excess_tracks`). Before the update, the candidate pairs
+(detections inside a track's gate box) are counted; beyond ``track.max_pairs`` the tracks with
+the most candidates are dropped, tentative before confirmed (:func:`pair_budget`): a gate holding
+many detections carries little information about a target, and the IPDA's existence of such a
+track barely moves (without a target, eq. 33 gives ``E[Lambda] = 1``, so in clutter a tentative
+track lives ``ln(initial/terminate) / -ln(survival)`` scans, 35 with the defaults). The cap is
+on pairs rather than on tentative tracks because pairs are what cost: a wide sector with
+hundreds of sparse clutter detections per scan (the paper's Scenario 1 at tau = 2) keeps
+thousands of tentative tracks but only about 2,000 pairs, and is not touched. Together the
+budget and the caps bound the tracks, the pairs and so the memory and time of a scan for any
+input.
+
 Confirmation: a track is confirmed the first time its existence exceeds ``T_c`` and stays
 confirmed until it is terminated (the paper's FTD counts confirmed tracks per scan). Termination:
 existence below the lower threshold.
-
-Gated initiation (not in the paper). In dense clutter one-point starts flood: every unused
-measurement becomes a track whose first gate holds ``rho A`` clutter measurements, so pairs grow
-as clutter^2. An unused measurement starts a track only where :func:`initiation_ratio` (the
-expected gain of the target term of eq. 33 over the clutter-only ``E[Lambda] = 1`` in the new
-track's first gate) is at least ``init.min_ratio``; this bounds the expected clutter in a new
-gate to ``gamma P_D / (4 min_ratio)`` whatever the density, and so makes the pairs linear in the
-clutter. Where the ratio is lower, an IPDA track could not tell its target from clutter anyway.
-New tracks are also limited to the room left under ``track.max_tracks``, highest ratio first.
 
 Duplicates (not in the paper). While the first track on a target is still tentative, the
 target's next measurements are not used by a confirmed track and start more tracks on the
@@ -35,16 +64,18 @@ same target. A track whose combined state lies within ``merge_threshold`` (squar
 distance with the two covariances summed) of a confirmed track is removed: a tentative duplicate
 of a confirmed track goes, and of two confirmed duplicates the younger one, so the id a user
 sees stays on the target. The check runs when a track is confirmed (duplicates are born before
-that) and, among confirmed tracks, on every scan.
+that) and, among confirmed tracks, on every scan. Candidates are found with the gating's box
+search (each track's box holds every state within the threshold of it), so the cost follows the
+nearby pairs, not confirmed x all tracks.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .gating import budgeted_pairs
+from .gating import candidate_pairs
 
-__all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'duplicate_tracks',
-           'initiation_ratio', 'excess_tracks']
+__all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'birth_measurements',
+           'duplicate_tracks', 'excess_tracks', 'pair_budget']
 
 
 def initial_covariance(R: np.ndarray, speed_max: float) -> np.ndarray:
@@ -76,38 +107,77 @@ def one_point_initiation(z: np.ndarray, R: np.ndarray, speed_max: float, n_modes
 
 
 def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarray,
-                        confirmed: np.ndarray) -> np.ndarray:
-    """Mask of measurements that no confirmed track validated (these start new tracks)."""
+                        tracks: np.ndarray) -> np.ndarray:
+    """Mask of measurements that no track in the mask ``tracks`` validated (these may start tracks)."""
     used = np.zeros(n_meas, dtype=bool)
-    used[pair_meas[confirmed[pair_track]]] = True
+    used[pair_meas[tracks[pair_track]]] = True
     return ~used
 
 
+# Up to this many (confirmed, track) combinations the position test runs on all of them.
+_DENSE_DUPLICATES = 4096
+
+
+def birth_measurements(unused: np.ndarray, validated: np.ndarray, rho: np.ndarray, budget: int) -> np.ndarray:
+    """Indices (ascending) of the unused measurements that start tracks, at most ``budget``.
+
+    ``unused (N,)`` bool (:func:`unused_measurements`), ``validated`` measurement indices of the
+    scan's validated pairs (any track), ``rho (N,)`` clutter densities. The order of preference
+    is in the module docstring.
+    """
+    idx = np.flatnonzero(unused)
+    if len(idx) <= budget:
+        return idx
+    seen = np.zeros(len(unused), dtype=bool)
+    seen[validated] = True
+    order = np.lexsort((idx, rho[idx], seen[idx]))
+    return np.sort(idx[order[:budget]])
+
+
+def pair_budget(counts: np.ndarray, confirmed: np.ndarray, max_pairs: int) -> np.ndarray:
+    """Mask of tracks to drop so the candidate pairs ``counts (T,)`` sum to at most ``max_pairs``.
+
+    Tentative tracks go before confirmed ones, and within each the tracks with the most
+    candidates first.
+    """
+    drop = np.zeros(len(counts), dtype=bool)
+    excess = int(counts.sum()) - max_pairs
+    if excess <= 0:
+        return drop
+    order = np.lexsort((-counts, confirmed))
+    n_drop = int(np.searchsorted(np.cumsum(counts[order]), excess, side='left')) + 1
+    drop[order[:n_drop]] = True
+    return drop
+
+
 def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confirmed: np.ndarray,
-                     ids: np.ndarray, threshold: float, max_pairs: int | None = None) -> np.ndarray:
+                     ids: np.ndarray, threshold: float) -> np.ndarray:
     """Mask of tracks to remove as duplicates of a confirmed track (see the module docstring).
 
-    ``x (n, T)``, ``P (n, n, T)`` are the combined estimates (eqs. 41-42). Candidates are
-    screened spatially first with the gating index
-    (:func:`~sonar_tracking.core.tracking.gating.budgeted_pairs`): along each position axis j a
-    duplicate lies within ``sqrt(threshold (P_jj + max_c P^c_jj))`` of a confirmed track (a
-    marginal Mahalanobis distance never exceeds the full one), so the work follows the near
-    pairs, not confirmed x all tracks; the full test runs on those. At most ``max_pairs``
-    candidate pairs are tested per call (youngest tracks first); tracks beyond wait for the next.
+    ``x (n, T)``, ``P (n, n, T)`` are the combined estimates (eqs. 41-42). Candidates are first
+    screened in boxes (``|dx_j| <= sqrt(thr P_jj) + sqrt(thr P'_jj)`` is necessary for a
+    duplicate, since a marginal Mahalanobis distance never exceeds the full one), then on
+    position alone, so the full test runs on few pairs.
     """
     n = x.shape[1]
     drop = np.zeros(n, dtype=bool)
     conf = np.flatnonzero(confirmed)
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
-    d = x.shape[0] // 2
-    pos_var = np.stack([P[j, j] for j in range(d)])                    # (d, T)
-    with np.errstate(invalid='ignore'):
-        half = np.sqrt(threshold * (pos_var + pos_var[:, conf].max(axis=1)[:, None])).T
-    centre = x[:d].T
-    tj, k, _ = budgeted_pairs(centre - half, centre + half, centre[conf], max_pairs, lambda: np.argsort(-ids))
-    ci = conf[k]
-    near = ci != tj
+    if len(conf) * n <= _DENSE_DUPLICATES:
+        # Few tracks: the position test on every (confirmed, track) pair costs fewer numpy calls.
+        ci, tj = np.repeat(conf, n), np.tile(np.arange(n), len(conf))
+    else:
+        pos = x[:2].T                                                       # (T, 2)
+        half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
+        reach = half[conf] + half.max(axis=0)
+        ci, tj = candidate_pairs(pos[conf] - reach, pos[conf] + reach, pos)
+        ci = conf[ci]
+    dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
+    a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
+    near = (d2 < threshold) & (ci != tj)
     ci, tj = ci[near], tj[near]
     if len(ci) == 0:
         return drop
@@ -121,26 +191,6 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     c_wins = (cc & ~ct) | ((cc == ct) & (ids[ci] < ids[tj]))
     drop[np.where(c_wins, tj, ci)] = True
     return drop
-
-
-def initiation_ratio(R: np.ndarray, rho: np.ndarray, speed_max: float, dt: float, p_detect: float) -> np.ndarray:
-    """Target-to-clutter density ratio of the first gate of a track started at each measurement.
-
-    A one-point track started from a measurement with covariance ``R_i`` has, one scan ``dt``
-    later, the innovation covariance ``S_1 = 2 R_i + dt^2 speed_max^2 / 3 I`` (process noise
-    neglected). The target's measurement then has the expected likelihood
-    ``E[N(nu; 0, S_1)] = 1 / ((4 pi)^(d/2) sqrt(det S_1))``; times ``P_D`` and divided by the
-    clutter density ``rho_i`` this is the expected gain of the target term of eq. (33) over
-    the clutter-only value ``E[Lambda] = 1``. Returns ``(N,)``.
-    """
-    R = np.asarray(R, dtype=float)
-    d = R.shape[-1]
-    S = 2.0 * R + (dt * dt * speed_max ** 2 / 3.0) * np.eye(d)
-    if d == 2:
-        det = S[:, 0, 0] * S[:, 1, 1] - S[:, 0, 1] * S[:, 1, 0]
-    else:
-        det = np.linalg.det(S)
-    return p_detect / ((4.0 * np.pi) ** (d / 2.0) * np.sqrt(det) * rho)
 
 
 def excess_tracks(existence: np.ndarray, confirmed: np.ndarray, max_tracks: int) -> np.ndarray:

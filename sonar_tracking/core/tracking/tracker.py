@@ -13,13 +13,6 @@ Input handling of :meth:`ImmIpdaTracker.step`:
   rest of the scan is used. :attr:`ImmIpdaTracker.report` lists the dropped rows with reasons;
 * a scan with the same stamp as the previous one is dropped whole (``report.duplicate_stamp``)
   and the previous output is returned again;
-* detections are paired with tracks through a spatial index, at most ``track.max_pairs``
-  candidate pairs per scan (confirmed tracks first, then by existence); tracks left without
-  pairs by that budget are removed (``report.over_budget``), so memory and time per scan are
-  bounded for any input: tracks by ``track.max_tracks``, pairs by ``track.max_pairs``;
-* with ``coverage`` (:class:`~sonar_tracking.core.tracking.coverage.Coverage`) passed to
-  :meth:`ImmIpdaTracker.step`, a track whose position has stayed outside it for more than
-  ``track.max_time_outside`` ends (``report.left_coverage``);
 * a scan stamped before the previous one (a replayed bag looping) or more than
   ``track.max_gap`` after it resets the tracker: every track is removed, the new scan is
   processed as a first scan and ``report.reset`` says why. Track ids keep counting, so an id is
@@ -28,6 +21,17 @@ Input handling of :meth:`ImmIpdaTracker.step`:
 
 The output never holds a NaN: a track whose estimate stops being finite is removed
 (``report.dropped_numerical``).
+
+Work and memory per scan are bounded for any input (see :mod:`~sonar_tracking.core.tracking.management`
+for the rules): at most ``init.max_per_scan`` tracks start per scan, at most ``track.max_tracks``
+tracks are kept, at most ``track.max_pairs`` candidate pairs are formed, and they are processed in
+chunks of at most ``_CHUNK_PAIRS`` (tracks are independent IPDAs, so chunking changes no result):
+the per-pair arrays never exceed a fixed size.
+
+Coverage (optional, not in the paper): ``step(..., coverage=...)`` takes the polar window the
+scan covered (:class:`~sonar_tracking.core.tracking.coverage.Coverage`); a track whose estimate
+has stayed outside the windows of successive scans for ``track.outside_time`` seconds ends
+(``report.left_coverage``). Scans without a window leave the clock as it is.
 """
 from __future__ import annotations
 
@@ -38,14 +42,14 @@ import numpy as np
 
 from ..records import TRACK_DTYPE
 from .config import MODE_NAMES, TrackerConfig
-from .errors import TrackingInputError
 from .coverage import Coverage
-from .gating import budgeted_pairs, gate_boxes, gate_threshold, innovations
+from .errors import TrackingInputError
+from .gating import candidate_counts, candidate_pairs, gate_boxes, gate_threshold, innovations
 from .imm import combine, interaction
 from .ipda import ipda_update
 from .kalman import predict, transition_operators
-from .management import (duplicate_tracks, excess_tracks, initial_covariance, initiation_ratio,
-                         one_point_initiation, unused_measurements)
+from .management import (birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
+                         one_point_initiation, pair_budget, unused_measurements)
 from .markov import mode_transition_matrix, predict_existence
 from .measurements import Rejection, as_measurements, check_measurements
 from .motion import ConstantTurn, ConstantVelocity, MotionModel
@@ -54,6 +58,8 @@ from .noise import white_noise_acceleration
 __all__ = ['Mode', 'modes_from_config', 'StepReport', 'ImmIpdaTracker']
 
 _ID_SPACE = 2 ** 32
+# Most candidate pairs gated and updated at once (bounds the per-pair arrays, ~1 kB per pair).
+_CHUNK_PAIRS = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -92,8 +98,8 @@ class StepReport:
     terminated: int = 0
     merged: int = 0
     capped: int = 0
-    over_budget: int = 0
     not_initiated: int = 0
+    pair_capped: int = 0
     left_coverage: int = 0
     dropped_numerical: int = 0
     n_tracks: int = 0
@@ -157,11 +163,10 @@ class ImmIpdaTracker:
         self._mu = np.zeros((m, 0))
         self._exist = np.zeros(0)
         self._confirmed = np.zeros(0, dtype=bool)
-        self._outside = np.zeros(0)
         self._xc = np.zeros((n, 0))
         self._Pc = np.zeros((n, n, 0))
+        self._outside_since = np.zeros(0)          # time a track's estimate left the coverage; NaN inside
         self._t: float | None = None
-        self._dt: float | None = None
         self._output = np.zeros(0, TRACK_DTYPE)
 
     def initial_covariance(self, R: np.ndarray | None = None) -> np.ndarray:
@@ -204,8 +209,8 @@ class ImmIpdaTracker:
         rho : ``(N,)`` clutter density at each detection (SCMDE) [1/m^2], used when
             ``clutter.source`` is ``detection``; None, or source ``constant``, uses
             ``clutter.density``.
-        coverage : the region the sensor sees at this scan; None = everywhere (no track ends
-            for leaving coverage).
+        coverage : the world-frame window this scan covered; None = unknown (no track ends for
+            leaving coverage on this scan).
         """
         cfg = self.config
         t = float(t)
@@ -232,25 +237,28 @@ class ImmIpdaTracker:
             z, R, rho = z[keep], R[keep], rho[keep]
 
         pair_track = pair_meas = np.zeros(0, dtype=np.intp)
-        dt = None if self._t is None else t - self._t
         if len(self._ids):
             # Overflow on absurd input shows as non-finite estimates, which _manage removes.
             with np.errstate(over='ignore', invalid='ignore', divide='ignore', under='ignore'):
-                pair_track, pair_meas, left_out = self._predict_update(dt, z, R, rho)
+                pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho, rep)
             rep.n_pairs = len(pair_track)
             with np.errstate(over='ignore', invalid='ignore'):
-                self._manage(rep, left_out, dt, coverage)
+                self._manage(rep, t, coverage)
             alive = self._alive
             # Pairs of surviving tracks, re-indexed (used to find measurements of confirmed tracks).
             new_index = np.cumsum(alive) - 1
             sel = alive[pair_track]
             pair_track, pair_meas = new_index[pair_track[sel]], pair_meas[sel]
-        unused = np.flatnonzero(unused_measurements(len(z), pair_track, pair_meas, self._confirmed))
-        if dt is not None:
-            self._dt = dt
-        start = self._to_initiate(R[unused], rho[unused])
-        self._initiate(z[unused[start]], R[unused[start]])
-        rep.initiated, rep.not_initiated = len(start), len(unused) - len(start)
+        exclude = self._confirmed if cfg.init.exclude == 'confirmed' else np.ones(len(self._ids), dtype=bool)
+        unused = unused_measurements(len(z), pair_track, pair_meas, exclude)
+        born = birth_measurements(unused, pair_meas, rho, cfg.init.max_per_scan)
+        self._initiate(z[born], R[born])
+        rep.initiated = len(born)
+        rep.not_initiated = int(np.count_nonzero(unused)) - len(born)
+        if len(self._ids) > cfg.track.max_tracks:
+            cap = excess_tracks(self._exist, self._confirmed, cfg.track.max_tracks)
+            rep.capped = int(np.count_nonzero(cap))
+            self._keep(~cap)
         self._t = t
         self._output = self._records()
         self._fill_counts(rep)
@@ -264,9 +272,8 @@ class ImmIpdaTracker:
             self._fq_cache = (dt, F, Q, transition_operators(F))
         return self._fq_cache[1:]
 
-    def _predict_update(self, dt: float, z: np.ndarray, R: np.ndarray, rho: np.ndarray
-                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Predict and update every track; returns the validated pairs and the tracks the budget left out."""
+    def _predict_update(self, dt: float, z: np.ndarray, R: np.ndarray, rho: np.ndarray, rep: StepReport
+                        ) -> tuple[np.ndarray, np.ndarray]:
         cfg, d = self.config, self.d
         meas_side = np.concatenate((z.T, R.reshape(len(z), d * d).T))                # (d + d^2, N)
         F, Q, ops = self._transitions(dt)
@@ -279,42 +286,62 @@ class ImmIpdaTracker:
         diag = np.arange(d)
         r_max = R[:, diag, diag].max(axis=0) if len(z) else np.zeros(d)
         lo, hi = gate_boxes(track_side[:d], track_side[d + diag * (d + 1)], r_max, self.gamma)
-        pt, pm, left_out = budgeted_pairs(lo, hi, z, cfg.track.max_pairs, self._priority)
+        n_tracks = len(self._ids)
+        bounds = [0, n_tracks]
+        if n_tracks * len(z) > _CHUNK_PAIRS:
+            counts = candidate_counts(lo, hi, z)
+            drop = pair_budget(counts, self._confirmed, cfg.track.max_pairs)
+            if drop.any():
+                rep.pair_capped = int(np.count_nonzero(drop))
+                keep = ~drop
+                self._keep(keep)
+                x_pred, P_pred, mu_pred, e_pred = x_pred[..., keep], P_pred[..., keep], mu_pred[:, keep], e_pred[keep]
+                track_side, lo, hi, counts = track_side[..., keep], lo[keep], hi[keep], counts[keep]
+                n_tracks = len(self._ids)
+            bounds = _chunk_bounds(counts, _CHUNK_PAIRS)
+        if len(bounds) == 2:
+            res, pt, pm = self._update_chunk(x_pred, P_pred, mu_pred, e_pred, track_side, lo, hi, z, meas_side, rho)
+            self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
+        else:
+            self._x, self._P = np.empty_like(x_pred), np.empty_like(P_pred)
+            self._mu, self._exist = np.empty_like(mu_pred), np.empty_like(e_pred)
+            pts, pms = [], []
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                res, pt, pm = self._update_chunk(x_pred[..., a:b], P_pred[..., a:b], mu_pred[:, a:b], e_pred[a:b],
+                                                 track_side[..., a:b], lo[a:b], hi[a:b], z, meas_side, rho)
+                self._x[..., a:b], self._P[..., a:b], self._mu[:, a:b] = res.x, res.P, res.mu
+                self._exist[a:b] = res.existence
+                pts.append(pt + a)
+                pms.append(pm)
+            pt, pm = np.concatenate(pts), np.concatenate(pms)
+        self._xc, self._Pc = combine(self._mu, self._x, self._P)                     # eqs. (41)-(42)
+        return pt, pm
+
+    def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, lo, hi, z, meas_side, rho):
+        """Gate and update a contiguous group of tracks (eqs. 25-40); pairs indexed within the group."""
+        cfg, d = self.config, self.d
+        pt, pm = candidate_pairs(lo, hi, z)
         tg = np.take(track_side, pt, axis=-1)
         mg = np.take(meas_side, pm, axis=-1)
         innov = innovations(mg[:d], mg[d:].reshape(d, d, -1), tg[:d],
                             tg[d:].reshape(d, d, *tg.shape[1:]))                          # eqs. (25)-(26)
         in_gate = innov.d2 < self.gamma
-        # Candidates outside every mode's gate stay: ipda_update gives them weight 0 (eq. 28), the
-        # sums are unchanged, and no second gather of the per-pair arrays is needed.
+        valid = in_gate.any(axis=0)
+        if not valid.all():
+            keep = np.flatnonzero(valid)
+            pt, pm, in_gate, innov = pt[keep], pm[keep], in_gate[:, keep], innov.select(keep)
         res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho[pm],
                           cfg.detection.probability, cfg.detection.gate_probability)  # eqs. (28)-(40)
-        self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
-        self._xc, self._Pc = combine(res.mu, res.x, res.P)                           # eqs. (41)-(42)
-        valid = in_gate.any(axis=0)
-        return pt[valid], pm[valid], left_out
+        return res, pt, pm
 
-    def _priority(self) -> np.ndarray:
-        """Track indices, most important first: confirmed, then by existence."""
-        return np.lexsort((-self._exist, ~self._confirmed))
+    def _keep(self, keep: np.ndarray) -> None:
+        """Keep only the tracks ``keep`` (bool mask) in every per-track array."""
+        self._ids, self._exist, self._confirmed = self._ids[keep], self._exist[keep], self._confirmed[keep]
+        self._x, self._P, self._mu = self._x[..., keep], self._P[..., keep], self._mu[:, keep]
+        self._xc, self._Pc = self._xc[:, keep], self._Pc[..., keep]
+        self._outside_since = self._outside_since[keep]
 
-    def _to_initiate(self, R: np.ndarray, rho: np.ndarray) -> np.ndarray:
-        """Indices of the unused measurements that start tracks (gated initiation, see management)."""
-        cfg = self.config
-        idx = np.arange(len(R))
-        if cfg.init.min_ratio > 0 and len(R):
-            ratio = initiation_ratio(R, rho, cfg.init.speed_max, self._dt or 0.0, cfg.detection.probability)
-            idx = np.flatnonzero(ratio >= cfg.init.min_ratio)
-        room = max(cfg.track.max_tracks - len(self._ids), 0)
-        if len(idx) > room:
-            if cfg.init.min_ratio > 0:
-                idx = idx[np.argsort(-ratio[idx], kind='stable')[:room]]
-                idx.sort()
-            else:
-                idx = idx[:room]
-        return idx
-
-    def _manage(self, rep: StepReport, left_out: np.ndarray, dt: float, coverage: Coverage | None) -> None:
+    def _manage(self, rep: StepReport, t: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
         xc, Pc = self._xc, self._Pc
         pxx, pxy, pyy = Pc[0, 0], Pc[0, 1], Pc[1, 1]
@@ -327,16 +354,14 @@ class ImmIpdaTracker:
         self._confirmed = self._confirmed | newly
         rep.confirmed = int(np.count_nonzero(newly))
         alive = finite & (self._exist >= cfg.terminate) & (major <= self.config.track.max_position_std ** 2)
-        if left_out.any():
-            rep.over_budget = int(np.count_nonzero(left_out))
-            alive &= ~left_out
-        if coverage is not None:
-            inside = coverage.contains(xc[:2].T)
-            self._outside = np.where(inside, 0.0, self._outside + dt)
-            gone = alive & (self._outside > self.config.track.max_time_outside)
-            rep.left_coverage = int(np.count_nonzero(gone))
-            alive &= ~gone
         rep.terminated = int(np.count_nonzero(finite & ~alive))
+        if coverage is not None:
+            inside = coverage.contains(xc[:2])
+            since = np.where(inside, np.nan, np.where(np.isnan(self._outside_since), t, self._outside_since))
+            self._outside_since = since
+            gone = alive & (t - since >= self.config.track.outside_time)    # NaN (inside) compares False
+            alive &= ~gone
+            rep.left_coverage = int(np.count_nonzero(gone))
         n_conf = int(np.count_nonzero(self._confirmed & alive))
         if self.config.track.merge_threshold > 0 and (rep.confirmed or n_conf > 1):
             # Duplicates are born while a target's first track is tentative (its measurements are
@@ -344,20 +369,12 @@ class ImmIpdaTracker:
             # between confirmed tracks (targets coalescing) the check runs every scan.
             idx = np.flatnonzero(alive if rep.confirmed else alive & self._confirmed)
             dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
-                                   self._ids[idx], self.config.track.merge_threshold, self.config.track.max_pairs)
+                                   self._ids[idx], self.config.track.merge_threshold)
             alive[idx[dup]] = False
             rep.merged = int(np.count_nonzero(dup))
-        if np.count_nonzero(alive) > self.config.track.max_tracks:
-            idx = np.flatnonzero(alive)
-            cap = excess_tracks(self._exist[idx], self._confirmed[idx], self.config.track.max_tracks)
-            alive[idx[cap]] = False
-            rep.capped = int(np.count_nonzero(cap))
         self._alive = alive
         if not alive.all():
-            self._ids, self._exist, self._confirmed = self._ids[alive], self._exist[alive], self._confirmed[alive]
-            self._outside = self._outside[alive]
-            self._x, self._P, self._mu = self._x[..., alive], self._P[..., alive], self._mu[:, alive]
-            self._xc, self._Pc = self._xc[:, alive], self._Pc[..., alive]
+            self._keep(alive)
 
     def _initiate(self, z: np.ndarray, R: np.ndarray) -> None:
         k = len(z)
@@ -371,9 +388,9 @@ class ImmIpdaTracker:
         self._mu = np.concatenate((self._mu, np.full((m, k), 1.0 / m)), axis=-1)
         self._exist = np.concatenate((self._exist, np.full(k, self.config.existence.initial)))
         self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
-        self._outside = np.concatenate((self._outside, np.zeros(k)))
         self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
         self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
+        self._outside_since = np.concatenate((self._outside_since, np.full(k, np.nan)))
 
     def _new_ids(self, k: int) -> np.ndarray:
         if self._next_id + k <= _ID_SPACE and not self._wrapped:
@@ -412,3 +429,17 @@ class ImmIpdaTracker:
     def _fill_counts(self, rep: StepReport) -> None:
         rep.n_tracks = len(self._ids)
         rep.n_confirmed = int(self._confirmed.sum())
+
+
+def _chunk_bounds(counts: np.ndarray, limit: int) -> list[int]:
+    """Boundaries splitting tracks ``0..T`` into contiguous groups whose ``counts`` sum to at most
+    ``limit`` (a single track above the limit forms its own group)."""
+    if not len(counts):
+        return [0, 0]
+    bounds = [0]
+    csum = np.cumsum(counts)
+    while bounds[-1] < len(counts):
+        a = bounds[-1]
+        base = csum[a - 1] if a else 0
+        bounds.append(max(int(np.searchsorted(csum, base + limit, side='right')), a + 1))
+    return bounds

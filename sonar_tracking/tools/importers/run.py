@@ -47,15 +47,16 @@ class ImportStats:
 
 
 class SectorBagWriter:
-    """Writes sectors and odometry into a new rosbag2 (MCAP or sqlite3) with rosbags."""
+    """Writes sectors and odometry into a new rosbag2 (MCAP or sqlite3) with the package's crash-safe
+    writer (:class:`~sonar_tracking.tools.bag_writer.BagWriter`: metadata version 9, as Jazzy writes)."""
 
     def __init__(self, out: Path, storage: str = 'mcap') -> None:
-        from rosbags.rosbag2 import StoragePlugin, Writer
         from rosbags.typesys import Stores, get_typestore
+
+        from ..bag_writer import BagWriter
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
         self.types = ma.RosbagsTypes(self.typestore)
-        self.writer = Writer(out, version=8,
-                             storage_plugin=StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3)
+        self.writer = BagWriter(out, storage)
         self.writer.open()
         self.conns: dict[str, Any] = {}
 

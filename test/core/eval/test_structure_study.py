@@ -71,3 +71,14 @@ def test_a_short_structured_run_adds_up():
     assert c.on_target + c.on_structure + c.elsewhere == c.confirmed_tracks
     plain = run_structure_study('fls1', 3, 2)           # a plain twin: its tracks are on nothing static
     assert plain.on_structure == 0 and plain.frames >= 1
+
+
+def test_runs_combine_by_sums_and_frame_weighted_rates():
+    from sonar_tracking.core.eval.structure_study import StructureCounts, combine
+    a = StructureCounts(frames=10, confirmed_tracks=2, on_target=1, on_structure=1, elsewhere=0,
+                        structure_track_ids=(5,), cttr=0.5, cle=1.0)
+    b = StructureCounts(frames=30, confirmed_tracks=1, on_target=1, on_structure=0, elsewhere=0,
+                        structure_track_ids=(), cttr=1.0, cle=2.0)
+    c = combine([a, b])
+    assert (c.frames, c.confirmed_tracks, c.on_target, c.on_structure) == (40, 3, 2, 1)
+    assert c.cttr == pytest.approx(35 / 40) and c.cle == pytest.approx((5 * 1.0 + 30 * 2.0) / 35)

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from sonar_tracking.core.tracking import TrackingInputError, candidate_pairs, gate_probability, gate_threshold, innovations
+from sonar_tracking.core.tracking import (TrackingInputError, candidate_pairs, gate_probability, gate_threshold,
+                                          innovations)
 from sonar_tracking.core.tracking import gating
 
 
@@ -46,6 +47,10 @@ def test_candidate_pairs_are_exactly_the_boxes_contents(monkeypatch, strips):
         track, meas = candidate_pairs(lo, hi, z)
         assert sorted(zip(track.tolist(), meas.tolist())) == brute_pairs(lo, hi, z)
         assert np.all(np.diff(track) >= 0), 'pairs must come sorted by track'
+        counts = gating.candidate_counts(lo, hi, z)
+        assert counts.shape == (T,) and np.all(counts >= np.bincount(track, minlength=T)), \
+            'candidate_counts must bound the pairs of every track'
+        assert counts.sum() <= T * N
 
 
 def test_candidate_pairs_edge_cases_of_the_strip_search(monkeypatch):
@@ -91,35 +96,3 @@ def test_innovations_match_direct_linear_algebra(d):
                                                         rel=1e-10)
     with pytest.raises(TrackingInputError):
         innovations(z[:, :3], R, zp, hph)
-
-
-@pytest.mark.parametrize('strips', [False, True])
-def test_budgeted_pairs_keep_whole_tracks_in_priority_order_within_the_budget(monkeypatch, strips):
-    if strips:
-        monkeypatch.setattr(gating, '_BRUTE_FORCE_PAIRS', 0)
-    rng = np.random.default_rng(8)
-    z = rng.uniform(-100, 100, (300, 2))
-    c = rng.uniform(-100, 100, (40, 2))
-    lo, hi = c - 15.0, c + 15.0
-    full_t, full_m = candidate_pairs(lo, hi, z)
-    per_track = np.bincount(full_t, minlength=40)
-    t, m, left_out = gating.budgeted_pairs(lo, hi, z, max_pairs=10 ** 6)
-    assert np.array_equal(t, full_t) and np.array_equal(m, full_m) and not left_out.any()
-    priority = rng.permutation(40)
-    budget = int(per_track.sum() // 3)
-    t, m, left_out = gating.budgeted_pairs(lo, hi, z, max_pairs=budget, priority=lambda: priority)
-    assert len(t) <= budget and left_out.any()
-    kept = np.flatnonzero(~left_out)
-    # Every kept track has all its pairs; the left-out ones have none.
-    assert sorted(zip(t.tolist(), m.tolist())) == sorted(
-        (i, j) for i, j in zip(full_t.tolist(), full_m.tolist()) if i in set(kept.tolist()))
-    # The kept tracks are the first ones in priority order.
-    rank = np.argsort(priority)
-    assert rank[kept].max() < rank[left_out].min()
-
-
-def test_budgeted_pairs_bound_the_no_gate_case():
-    z = np.zeros((50, 2))
-    lo, hi = np.full((10, 2), -np.inf), np.full((10, 2), np.inf)
-    t, m, left_out = gating.budgeted_pairs(lo, hi, z, max_pairs=120, priority=np.arange(10)[::-1])
-    assert len(t) == 100 and set(t.tolist()) == {9, 8} and left_out.sum() == 8

@@ -12,30 +12,30 @@ from sonar_tracking.core.tracking.ipda import segment_sum
 def paper_update(xp, Pp, mup, ep, z, R, rho, gates, pd, pg):
     """One track, eqs. (28)-(40) with loops; eq. (36) in its standard form (no trailing - x x^T).
 
-    ``xp (M, n)``, ``Pp (M, n, n)``, ``z (I, 2)``, ``R (I, 2, 2)``, ``gates (M, I)`` bool.
+    ``xp (M, n)``, ``Pp (M, n, n)``, ``z (n_meas, 2)``, ``R (n_meas, 2, 2)``, ``gates (M, n_meas)`` bool.
     """
     M, n = xp.shape
-    I = len(z)
+    n_meas = len(z)
     H = np.eye(2, n)
-    pm = np.zeros((M, I))
+    pm = np.zeros((M, n_meas))
     for m in range(M):
-        for i in range(I):
+        for i in range(n_meas):
             S = H @ Pp[m] @ H.T + R[i]                                             # eq. (26)
             if gates[m, i]:
                 pm[m, i] = stats.multivariate_normal(H @ xp[m], S).pdf(z[i]) / pg  # eq. (28)
     p = mup @ pm                                                                   # eq. (29)
     lam = 1 - pd * pg + pd * pg * np.sum(p / rho)                                  # eq. (33)
     beta = np.concatenate(([(1 - pd * pg) / lam], pd * pg * p / (lam * rho)))     # eq. (32)
-    mu_i = np.zeros((M, I + 1))
+    mu_i = np.zeros((M, n_meas + 1))
     mu_i[:, 0] = mup
-    for i in range(I):
+    for i in range(n_meas):
         mu_i[:, i + 1] = mup * pm[:, i] / p[i]                                     # eq. (31)
     mu = mu_i @ beta                                                               # eq. (30)
     x_out, P_out = np.zeros((M, n)), np.zeros((M, n, n))
     for m in range(M):
         bm = beta * mu_i[m] / mu[m]                                                # eq. (34)
         xs, Ps = [xp[m]], [Pp[m]]
-        for i in range(I):
+        for i in range(n_meas):
             S = H @ Pp[m] @ H.T + R[i]
             K = Pp[m] @ H.T @ np.linalg.inv(S)                                     # eq. (39)
             xs.append(xp[m] + K @ (z[i] - H @ xp[m]))                              # eq. (37)
