@@ -72,7 +72,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gating import candidate_pairs
+from .gating import candidate_counts, candidate_pairs
 
 __all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'birth_measurements',
            'duplicate_tracks', 'excess_tracks', 'pair_budget']
@@ -151,13 +151,16 @@ def pair_budget(counts: np.ndarray, confirmed: np.ndarray, max_pairs: int) -> np
 
 
 def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confirmed: np.ndarray,
-                     ids: np.ndarray, threshold: float) -> np.ndarray:
+                     ids: np.ndarray, threshold: float, max_pairs: int | None = None) -> np.ndarray:
     """Mask of tracks to remove as duplicates of a confirmed track (see the module docstring).
 
     ``x (n, T)``, ``P (n, n, T)`` are the combined estimates (eqs. 41-42). Candidates are first
     screened in boxes (``|dx_j| <= sqrt(thr P_jj) + sqrt(thr P'_jj)`` is necessary for a
     duplicate, since a marginal Mahalanobis distance never exceeds the full one), then on
-    position alone, so the full test runs on few pairs.
+    position alone, so the full test runs on few pairs. With ``max_pairs``, the boxes of the
+    oldest confirmed tracks are searched while their candidates (counted first) fit in it, at
+    least one box; the others wait for the next call (tracks on one spot would otherwise make
+    confirmed x all pairs).
     """
     n = x.shape[1]
     drop = np.zeros(n, dtype=bool)
@@ -171,7 +174,14 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
         pos = x[:2].T                                                       # (T, 2)
         half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
         reach = half[conf] + half.max(axis=0)
-        ci, tj = candidate_pairs(pos[conf] - reach, pos[conf] + reach, pos)
+        lo, hi = pos[conf] - reach, pos[conf] + reach
+        if max_pairs is not None:
+            counts = candidate_counts(lo, hi, pos)
+            if counts.sum() > max_pairs:
+                order = np.argsort(ids[conf], kind='stable')
+                keep = np.sort(order[:max(1, int(np.count_nonzero(np.cumsum(counts[order]) <= max_pairs)))])
+                conf, lo, hi = conf[keep], lo[keep], hi[keep]
+        ci, tj = candidate_pairs(lo, hi, pos)
         ci = conf[ci]
     dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
     a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]

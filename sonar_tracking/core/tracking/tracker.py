@@ -369,7 +369,7 @@ class ImmIpdaTracker:
             # between confirmed tracks (targets coalescing) the check runs every scan.
             idx = np.flatnonzero(alive if rep.confirmed else alive & self._confirmed)
             dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
-                                   self._ids[idx], self.config.track.merge_threshold)
+                                   self._ids[idx], self.config.track.merge_threshold, self.config.track.max_pairs)
             alive[idx[dup]] = False
             rep.merged = int(np.count_nonzero(dup))
         self._alive = alive

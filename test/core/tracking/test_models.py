@@ -94,3 +94,30 @@ def test_existence_chain_eq24_and_posterior_eq40():
     assert post / (1 - post) == pytest.approx(0.3 / 0.7 * 2.5)
     # The 0/0 case is 0, never NaN.
     assert update_existence(np.array([1.0]), np.array([0.0]))[0] == 0.0
+
+
+def test_duplicate_check_of_coincident_confirmed_tracks_stays_within_its_pair_budget():
+    """3,000 confirmed tracks on one spot: 9 M near pairs; the budget bounds memory, the oldest id stays."""
+    import tracemalloc
+
+    from sonar_tracking.core.tracking.management import duplicate_tracks
+    n = 3000
+    x = np.zeros((4, n))
+    P = np.broadcast_to(np.eye(4)[:, :, None], (4, 4, n)).copy()
+    ids = np.random.default_rng(33).permutation(n) + 1
+    alive = np.ones(n, dtype=bool)
+    tracemalloc.start()
+    try:
+        for _ in range(200):
+            idx = np.flatnonzero(alive)
+            if len(idx) == 1:
+                break
+            drop = duplicate_tracks(x[:, idx], P[..., idx], np.ones(len(idx)), np.ones(len(idx), dtype=bool),
+                                    ids[idx], 9.49, max_pairs=100_000)
+            assert drop.any()
+            alive[idx[drop]] = False
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert np.flatnonzero(alive).tolist() == [int(np.argmin(ids))]
+    assert peak < 100e6
