@@ -6,20 +6,19 @@ each step maps fresh pages and page-faults them, and trims the heap after it. Wi
 thresholds below, the memory is taken from the heap and kept for the next step. The price: a
 process keeps up to ``MALLOC_TRIM_THRESHOLD_`` of freed heap instead of returning it at once.
 
-glibc reads these variables once, when the process starts, so they cannot be set from inside
-a running interpreter. :func:`allocator_env` gives the environment for a child process;
-:func:`reexec_with_allocator` restarts the current program with it (call it first thing in a
-``main()``). A value already in the environment is kept (the user's choice wins), and
-``SONAR_TRACKING_MALLOC=0`` switches the whole thing off.
+glibc reads these variables when a process starts; a running process sets the same values with
+``mallopt`` (:func:`apply_in_process`, called where every process of the package starts: the
+nodes' and tools' ``prepare_process``, ``sonar_eval``). :func:`allocator_env` gives the
+environment for a child process that is not one of ours. A value already in the environment is
+kept (the user's choice wins), and ``SONAR_TRACKING_MALLOC=0`` switches the whole thing off.
 """
 from __future__ import annotations
 
 import os
 import platform
-import sys
 from collections.abc import Mapping
 
-__all__ = ['ALLOCATOR_SETTINGS', 'allocator_env', 'allocator_applied', 'reexec_with_allocator']
+__all__ = ['ALLOCATOR_SETTINGS', 'allocator_env', 'allocator_applied', 'apply_in_process']
 
 #: Variable -> value. 32 MiB is the largest mmap threshold glibc accepts on 64-bit.
 ALLOCATOR_SETTINGS: dict[str, str] = {
@@ -49,21 +48,22 @@ def allocator_applied(env: Mapping[str, str] | None = None) -> bool:
     return not _enabled(env) or all(k in env for k in ALLOCATOR_SETTINGS)
 
 
-def reexec_with_allocator(argv: list[str] | None = None) -> None:
-    """Restart this Python program with :func:`allocator_env` unless it already runs with it.
+#: mallopt parameter numbers (glibc malloc.h) of the settings.
+_MALLOPT = {'MALLOC_TRIM_THRESHOLD_': -1, 'MALLOC_TOP_PAD_': -2, 'MALLOC_MMAP_THRESHOLD_': -3}
 
-    Replaces the process (``os.execve``); returns only when nothing needs doing. ``argv`` (the
-    interpreter's arguments) defaults to ``sys.argv``, or ``-m MODULE ...`` when the program was
-    started with ``python -m``. Call it before any other work: what ran before is redone.
-    """
-    if allocator_applied():
-        return
-    if argv is None:
-        main = sys.modules.get('__main__')
-        spec = getattr(main, '__spec__', None)
-        # Started with ``python -m pkg.mod``: restart the same way, so package imports keep working.
-        argv = ['-m', spec.name, *sys.argv[1:]] if spec is not None and spec.name else list(sys.argv)
-    args = [sys.executable, *argv]
-    sys.stdout.flush()
-    sys.stderr.flush()
-    os.execve(sys.executable, args, allocator_env())
+
+def apply_in_process() -> bool:
+    """Set the allocator settings in this process with glibc's ``mallopt`` (a setting the user gave
+    in the environment is left as glibc read it). True when they are in force."""
+    if not _enabled(os.environ):
+        return False
+    try:
+        import ctypes
+        libc = ctypes.CDLL('libc.so.6')
+    except OSError:
+        return False
+    ok = True
+    for key, value in ALLOCATOR_SETTINGS.items():
+        if key not in os.environ:
+            ok &= libc.mallopt(_MALLOPT[key], int(value)) == 1
+    return bool(ok)

@@ -7,6 +7,8 @@ import signal
 from importlib import resources
 from typing import TYPE_CHECKING, Callable
 
+from sonar_tracking.core.allocator import apply_in_process
+
 if TYPE_CHECKING:
     import rclpy.node
 
@@ -14,12 +16,14 @@ __all__ = ['run_node', 'prepare_process', 'configure_dds', 'private_domain']
 
 
 def prepare_process() -> None:
-    """Call first in every ROS entry point: DDS defaults, and under ``sonar_stack`` a parent watch.
+    """Call first in every ROS entry point: DDS defaults, the allocator settings, and under
+    ``sonar_stack`` a parent watch.
 
     ``sonar_stack`` sets ``SONAR_TRACKING_DIE_WITH_PARENT``: the process then asks Linux for
     SIGTERM when its parent dies (``PR_SET_PDEATHSIG``), so a killed stack leaves no orphans.
     """
     configure_dds()
+    apply_in_process()   # large numpy temporaries stay on the heap (sonar_tracking.core.allocator)
     if os.environ.get('SONAR_TRACKING_DIE_WITH_PARENT'):
         try:
             ctypes.CDLL('libc.so.6', use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG

@@ -65,6 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``sonar_eval`` executable."""
+    from sonar_tracking.core.allocator import apply_in_process
+    apply_in_process()   # large numpy temporaries stay on the heap (studies, benchmarks)
     args = build_parser().parse_args(argv)
     try:
         return int(args.handler(args) or 0)

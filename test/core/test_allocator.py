@@ -20,30 +20,33 @@ def test_switched_off_adds_nothing():
     assert allocator.allocator_applied(env)
 
 
-def test_reexec_restarts_once_with_the_settings(tmp_path):
-    script = tmp_path / 'child.py'
-    script.write_text('import os, sys\n'
-                      'from sonar_tracking.core.allocator import reexec_with_allocator\n'
-                      'print("start", flush=True)\n'
-                      'reexec_with_allocator()\n'
-                      'print(os.environ.get("MALLOC_MMAP_THRESHOLD_"), sys.argv[1:])\n')
-    env = {k: v for k, v in allocator.allocator_env().items() if k not in allocator.ALLOCATOR_SETTINGS}
-    out = subprocess.run([sys.executable, str(script), 'a', 'b'], env=env, capture_output=True, text=True,
-                         check=True, timeout=60).stdout.split('\n')
-    assert out[:3] == ['start', 'start', f"{allocator.ALLOCATOR_SETTINGS['MALLOC_MMAP_THRESHOLD_']} ['a', 'b']"]
+_PROBE = """
+import ctypes, sys
+from sonar_tracking.core.allocator import apply_in_process
+class Mallinfo2(ctypes.Structure):
+    _fields_ = [(n, ctypes.c_size_t) for n in ('arena', 'ordblks', 'smblks', 'hblks', 'hblkhd', 'usmblks',
+                                               'fsmblks', 'uordblks', 'fordblks', 'keepcost')]
+libc = ctypes.CDLL('libc.so.6')
+libc.mallinfo2.restype = Mallinfo2
+applied = apply_in_process() if sys.argv[1] == 'apply' else False
+import numpy as np
+a = np.ones(4 * 1024 * 1024 // 8)      # 4 MiB: above glibc's default mmap threshold (128 kB)
+print(applied, libc.mallinfo2().hblkhd >= 4 * 1024 * 1024)
+"""
 
 
-def test_reexec_of_a_module_run_keeps_it_a_module(tmp_path):
-    pkg = tmp_path / 'pkg_alloc'
-    pkg.mkdir()
-    (pkg / '__init__.py').write_text('VALUE = "pkg"\n')
-    (pkg / 'main.py').write_text('import os\n'
-                                 'from . import VALUE\n'
-                                 'from sonar_tracking.core.allocator import reexec_with_allocator\n'
-                                 'reexec_with_allocator()\n'
-                                 'print(VALUE, os.environ.get("MALLOC_TRIM_THRESHOLD_"))\n')
+def test_in_process_settings_keep_large_temporaries_on_the_heap(tmp_path):
+    """With the settings a 4 MiB array comes from the heap (kept for the next step), without them from
+    a fresh mmap (page-faulted each time)."""
     env = {k: v for k, v in allocator.allocator_env().items() if k not in allocator.ALLOCATOR_SETTINGS}
-    env['PYTHONPATH'] = f'{tmp_path}:{env.get("PYTHONPATH", "")}'
-    out = subprocess.run([sys.executable, '-m', 'pkg_alloc.main'], env=env, capture_output=True, text=True,
-                         check=True, timeout=60).stdout.strip()
-    assert out == f"pkg {allocator.ALLOCATOR_SETTINGS['MALLOC_TRIM_THRESHOLD_']}"
+    script = tmp_path / 'probe.py'
+    script.write_text(_PROBE)
+
+    def probe(mode):
+        return subprocess.run([sys.executable, str(script), mode], env=env, capture_output=True, text=True,
+                              check=True, timeout=60).stdout.split()
+    assert probe('apply') == ['True', 'False']
+    assert probe('plain') == ['False', 'True']
+    off = subprocess.run([sys.executable, str(script), 'apply'], env=env | {'SONAR_TRACKING_MALLOC': '0'},
+                         capture_output=True, text=True, check=True, timeout=60).stdout.split()
+    assert off == ['False', 'True']
