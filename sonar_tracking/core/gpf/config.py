@@ -41,13 +41,8 @@ class MotionConfig(Config):
     of eqs. (6)-(8) can be: the particles are drawn from the prediction, and every particle whose
     window is background keeps a weight of ``exp(-sum beta_i d_i^2 / 2)`` relative to one on the
     target (eq. 13; about e^-3 to e^-5 for MF), so the wider the prediction beyond the target's
-    echo, the more the weighted mean of eq. (8) is pulled toward the middle of the cloud. Measured on
-    situations 4, 8 and 9 (seed 7, 6 runs): MF's update is accepted in 93-97 % of frames with a
-    posterior 0.22 m from the target when the predicted position spread (sqrt of the trace) is below
-    1.5 m, in 28-37 % when it is wider. ``q`` = 0.001 (0.2 m of wander over a 5 s frame, ``q dt^3 /
-    3``) instead of 0.004 (0.41 m) narrows the median spread from 1.84 to 1.42 m (AF) and 1.94 to
-    1.54 m (WF), the accepted share of AF's updates from 31 to 35 % and WF's from 22 to 30 %, and
-    the median one-step error of AF's posterior from 0.54 to 0.46 m."""
+    echo, the more the weighted mean of eq. (8) is pulled toward the middle of the cloud. The
+    measurements behind ``q`` are in ``docs/experiments/2026-11-21-fls-gpf-study.md``."""
 
     noise: float = setting(0.001, 'acceleration noise PSD q of the constant-velocity model (ours: towed targets '
                            'wander about 0.2 m off their line in a 5 s frame; larger values widen the prediction '
@@ -203,7 +198,7 @@ class GpfConfig(Config):
     min_std: float = setting(0.5, 'posterior position std floor of the GPF, and the spread the SIR baseline is '
                              'roughened to after resampling (ours): a sharper posterior leaves the next prediction '
                              'too narrow to hold a towed target that changes course (0.5: best of 0.25-0.65 on the '
-                             'tank situations, sonar_tracking.core.eval.fls_study)', unit='m', low=0.0, high=100.0)
+                             'tank situations, docs/experiments)', unit='m', low=0.0, high=100.0)
     motion: MotionConfig = dataclasses.field(default_factory=MotionConfig)
     cues: CueConfig = dataclasses.field(default_factory=CueConfig)
     fusion: FusionConfig = dataclasses.field(default_factory=FusionConfig)

@@ -47,12 +47,7 @@ five cues all five are above their thresholds together in 77 % of healthy frames
 track and WF when a cue fails (and, with the ``crossing`` switch, near another track).
 ``fusion.thresholds`` may set them explicitly.
 
-Why the 7.5th percentile and not the lower quartile (the calibration before): with the quartiles
-all five cues passed together in only 39 % of healthy frames, so AF was WF in most frames and
-could not be better than WF where MF is (the single-target situations). Since the GPF update
-takes the velocity by conditioning (:mod:`.gaussian`), MF no longer loses the target after a sharp
-update and is the better fusion on a well-visible target; with the 7.5th percentile AF follows MF
-there and WF on the crossings (numbers in :mod:`sonar_tracking.core.eval.fls_study`).
+Why the 7.5th percentile and not the lower quartile: ``docs/experiments/2026-11-21-fls-gpf-study.md``.
 """
 from __future__ import annotations
 

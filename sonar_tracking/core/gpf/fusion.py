@@ -39,21 +39,7 @@ modes weak and the motion prediction carries the track through. So adaptive fusi
 another track's predicted position is within the squared Mahalanobis distance ``fusion.gate``
 (9.21: 99 % of a 2-D Gaussian, i.e. inside the cloud the particles are drawn from) of this track's
 predicted position, and eq. 18's per-cue test otherwise. Switch ``cues`` is eq. 18 alone.
-Measured on situations 8-11 (30 runs, seed 7, one random stream per method, mean CLE over both
-targets, AF with ``cues`` ->
-``crossing``, WF for comparison): 0.38 -> 0.37 (0.37), 0.49 -> 0.38 (0.39), 0.63 -> 0.49 (0.59),
-0.46 -> 0.42 (0.39); single-target situations 1-4 unchanged. Not kept (same data): MF only when
-MF's weighted position std is below the 0.7 m window (0.38, 0.48, 0.62, 0.65: worse on 11), MF only
-when its effective sample size is at least 10 and its mean within 0.35 m of WF's (0.38, 0.40, 0.50,
-0.45), and that test combined with the crossing gate (0.37, 0.39, 0.50, 0.41: no better than the
-gate alone, with two more settings). Confirmed once on seed 2026 (not tuned there; one stream
-per method): AF 0.42 -> 0.37, 0.47 -> 0.40, 0.67 -> 0.61, 0.41 -> 0.40 against WF 0.38, 0.39, 0.57, 0.38
-and MF 0.56, 0.56, 0.65, 0.50, identity kept 87-90 %: AF beats MF everywhere and WF on situation 8, but WF stays
-0.01-0.04 m ahead on 9-11 (within the run-to-run noise of a few failure runs). With common random
-numbers across methods (the study's design since, :mod:`sonar_tracking.core.eval.fls_study`) AF is
-within 0.01-0.09 m of WF on 8-11, not better. These figures predate the velocity conditioning of the
-update (:mod:`.gaussian`) and the 7.5th-percentile ``T_i`` (:mod:`.cues`); the current ones are in
-:mod:`sonar_tracking.core.eval.fls_study`.
+The measurements behind this choice are in ``docs/experiments/2026-11-21-fls-gpf-study.md``.
 """
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ jittered so that their position spread is at least the GPF's posterior floor ``m
 cue likelihood puts most weight on a few particles, resampling copies those, and the motion model
 alone spreads them by about 0.2 m in a 5 s frame, less than a towed target wanders; without the
 jitter the SIR's cloud missed the target as the GPF's floored-at-0.25 m posterior did (numbers in
-:mod:`sonar_tracking.core.eval.fls_study`). One floor for both particle methods keeps the
+``docs/experiments/2026-11-21-fls-gpf-study.md``). One floor for both particle methods keeps the
 comparison about how they use a frame.
 """
 from __future__ import annotations
