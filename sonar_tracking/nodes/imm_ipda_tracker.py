@@ -1,9 +1,11 @@
 """``imm_ipda_tracker``: the IMM-IPDA multi-target tracker of the ESC paper (§2.4) on ``detections``.
 
 Subscribes ``detections`` (``DETECTION_DTYPE`` clouds in the world frame: positions, the
-converted-measurement covariance ``cov_xx, cov_xy, cov_yy`` and the SCMDE ``clutter_density``)
-and ``platform/odometry`` (only noted, for diagnostics: tracking is in the world frame, so the
-platform's motion is already in the detections). Publishes ``tracks`` (``TRACK_DTYPE``: confirmed
+converted-measurement covariance ``cov_xx, cov_xy, cov_yy`` and the SCMDE ``clutter_density``),
+``platform/odometry`` (the sonar pose: tracking is in the world frame, so the platform's motion is
+already in the detections; it places the coverage window and shows in the diagnostics) and, with
+``coverage: scan``, ``sonar/sector_info`` (the window each scan covered: a track that stays outside
+it for ``track.outside_time`` ends). Publishes ``tracks`` (``TRACK_DTYPE``: confirmed
 tracks, and tentative ones too with ``publish_tentative``; width 0 when there are none),
 ``tracks/markers`` and ``diagnostics``.
 
@@ -28,22 +30,25 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2
 
 import msg_adapters as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
 from sonar_tracking.core.tracking.detections import detections_to_measurements
-from sonar_tracking.ros import InputConfig, SonarNode, TrackOutput, TrackOutputConfig, run_node
+from sonar_tracking.ros import (CoverageSource, InputConfig, PoseConfig, SonarNode, TrackOutput, TrackOutputConfig,
+                                 run_node)
 
 __all__ = ['TrackerNodeConfig', 'ImmIpdaTrackerNode', 'main']
 
 @dataclass(frozen=True)
-class TrackerNodeConfig(TrackerConfig, InputConfig, TrackOutputConfig):
-    """Tracker settings, input QoS and time rule, and what the node publishes."""
+class TrackerNodeConfig(TrackerConfig, InputConfig, PoseConfig, TrackOutputConfig):
+    """Tracker settings, input QoS and time rule, the sonar pose, and what the node publishes."""
 
     world_frame: str = setting('world', 'frame of detections and tracks', read_only=True)
+    coverage: str = setting('none', "'scan': end tracks that leave the window of sonar/sector_info (a sensor whose "
+                            "sector is the whole scan: imaging sonars, the harbour sonar); 'none': no window",
+                            choices=('none', 'scan'), read_only=True)
     marker_scale: float = setting(10.0, 'diameter of a track sphere in tracks/markers', unit='m',
                                   low=0.0, high=1e5, low_open=True)
 
@@ -55,12 +60,11 @@ class ImmIpdaTrackerNode(SonarNode):
         super().__init__('imm_ipda_tracker', TrackerNodeConfig(), 'imm_ipda_tracker: tracking', **kwargs)
         self.tracker = ImmIpdaTracker(self.config)
         self.origin_ns: int | None = None
-        self.platform: tuple[float, float, float, float] | None = None
         self.rejected_rows = 0
         self.resets = 0
         self._warned: set[str] = set()
         self.subscribe(PointCloud2, 'detections', self._process, self.input_qos(100))
-        self.subscribe(Odometry, 'platform/odometry', self._on_odometry, self.input_qos(100))
+        self.coverage = CoverageSource(self, self.input_qos(100))
         self.out = TrackOutput(self, 'tracks', 'tracks')
         modes = ', '.join(m.name for m in self.tracker.modes)
         self.get_logger().info(f'IMM-IPDA with modes {modes}; P_D {self.config.detection.probability:g}, '
@@ -77,13 +81,6 @@ class ImmIpdaTrackerNode(SonarNode):
         self.resets += 1
 
     # -- inputs ------------------------------------------------------------------------------
-    def _on_odometry(self, msg: Odometry) -> None:
-        try:
-            x, y, yaw = ma.odometry_to_pose(msg)
-            self.platform = (ma.header_ns(msg) / 1e9, x, y, yaw)
-        except ma.AdapterError as exc:
-            self.say('error', f'odometry dropped: {exc}', 'bad_odometry')
-
     def _process(self, msg: PointCloud2) -> None:
         started = time.perf_counter()
         try:
@@ -104,7 +101,8 @@ class ImmIpdaTrackerNode(SonarNode):
         if self.origin_ns is None:
             self.origin_ns = stamp          # times relative to the first stamp keep nanosecond resolution
         try:
-            tracks = self.tracker.step((stamp - self.origin_ns) * 1e-9, z, R, rho)
+            window = self.coverage.at(stamp) if self.config.coverage == 'scan' else None
+            tracks = self.tracker.step((stamp - self.origin_ns) * 1e-9, z, R, rho, coverage=window)
         except TrackingError as exc:           # shapes are ours, so this is a bug worth seeing
             self.say('error', f'detections at {stamp / 1e9:.6f} s dropped: {exc}', 'tracker_error')
             return
@@ -125,10 +123,13 @@ class ImmIpdaTrackerNode(SonarNode):
         values = {'detections': str(n_detections), 'tracks': str(rep.n_tracks), 'confirmed': str(rep.n_confirmed),
                   'validated_pairs': str(rep.n_pairs), 'initiated': str(rep.initiated),
                   'terminated': str(rep.terminated), 'merged': str(rep.merged),
-                  'rejected_rows_total': str(self.rejected_rows), 'resets_total': str(self.resets)}
-        if self.platform is not None:
-            t, x, y, yaw = self.platform
-            values['platform_pose'] = f'x {x:.2f} m, y {y:.2f} m, yaw {np.degrees(yaw):.1f} deg at {t:.3f} s'
+                  'rejected_rows_total': str(self.rejected_rows), 'resets_total': str(self.resets),
+                  'not_initiated': str(rep.not_initiated), 'pair_capped': str(rep.pair_capped),
+                  'left_coverage': str(rep.left_coverage)}
+        pose = self.coverage.pose
+        if pose.has_odometry:
+            x, y, yaw = pose.pose_at(int(pose.newest * 1e9))
+            values['platform_pose'] = f'x {x:.2f} m, y {y:.2f} m, yaw {np.degrees(yaw):.1f} deg at {pose.newest:.3f} s'
         return values
 
     def _warn_once(self, text: str) -> None:

@@ -6,6 +6,7 @@ diagnostics (:mod:`.diagnostics`), the processing-node base with guarded callbac
 and sector input (:mod:`.sector_input`). Nodes in ``sonar_tracking.nodes`` only wire these to
 the core.
 """
+from .coverage import CoverageSource
 from .diagnostics import StageDiagnostics
 from .gate import SubscriberGate
 from .node import InputConfig, SonarNode
@@ -22,5 +23,5 @@ __all__ = [
     'Pose', 'PoseConfig', 'PoseSource', 'check_sonar_pose', 'CLOCK_TOPIC', 'INPUT_QOS', 'input_profile',
     'latest_profile', 'output_profile', 'configure_dds', 'prepare_process', 'run_node', 'SectorInput',
     'SectorInputConfig', 'LATE', 'NEW', 'RESET', 'TimeGuard', 'SubscriberGate',
-    'TrackOutput', 'TrackOutputConfig',
+    'TrackOutput', 'TrackOutputConfig', 'CoverageSource',
 ]
