@@ -52,6 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     if missing:
         print(f'warning: topics not in the bag: {missing}', file=sys.stderr)
 
+    from sonar_tracking.ros.qos import CLOCK_TOPIC
     from sonar_tracking.ros.runtime import prepare_process
     prepare_process()
     import rclpy
@@ -74,7 +75,7 @@ def main(argv: list[str] | None = None) -> int:
             publishers[name] = node.create_publisher(rclpy_types().cls(t.msgtype), name, qos_to_rclpy(t.qos))
         except (ImportError, AttributeError, ValueError) as exc:
             log.warning(f'{name}: type {t.msgtype} not importable ({exc}); skipped')
-    clock_pub = node.create_publisher(Clock, '/clock', 10) if args.clock else None
+    clock_pub = node.create_publisher(Clock, CLOCK_TOPIC, 10) if args.clock else None
 
     deadline = time.monotonic() + args.wait_timeout
     for name in args.wait_for:
