@@ -48,7 +48,7 @@ class SonarNode(Node):
     def __init__(self, name: str, config: Config, diag_name: str, *, mutable: set[str] | None = None,
                  skip: tuple[str, ...] = (), check: Callable[[Config], None] | None = None, **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
-        self.params = ConfigParameters(self, config, on_change=self._changed, skip=skip, mutable=mutable, check=check)
+        self.params = ConfigParameters(self, config, on_change=self.on_change, skip=skip, mutable=mutable, check=check)
         self.diag = StageDiagnostics(diag_name)
         self.time = TimeGuard()
         self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
@@ -104,9 +104,6 @@ class SonarNode(Node):
             self.diag.report(self.get_logger(), reason, text, severity)
         else:
             self.diag.log(self.get_logger(), StageDiagnostics.kind(text), text, severity)
-
-    def _changed(self, old: Any, new: Any) -> None:
-        self.on_change(old, new)
 
     def _publish_diagnostics(self) -> None:
         self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))
