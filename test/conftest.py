@@ -68,6 +68,23 @@ def ros(graph_node):
             raise AssertionError(f'timed out after {timeout} s waiting for {what}')
 
         @staticmethod
+        def wait_listened(outputs, timeout=30.0):
+            """Wait until each ``(diagnostic status name, topic)`` in ``outputs`` reports a matched reader
+            (``subscribers TOPIC`` >= 1 in the node's /diagnostics): its messages will now be delivered."""
+            from diagnostic_msgs.msg import DiagnosticArray
+            heard: dict = {}
+
+            def on_diag(msg):
+                for st in msg.status:
+                    heard.update({(st.name, kv.key): kv.value for kv in st.values})
+            sub = graph_node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 50)
+            try:
+                Ros.wait(lambda: all(int(heard.get((name, f'subscribers {topic}'), 0)) >= 1 for name, topic in outputs),
+                         timeout, f'matched readers of {outputs}')
+            finally:
+                graph_node.destroy_subscription(sub)
+
+        @staticmethod
         def call(client, request, timeout=20.0, resend=2.0):
             """The response to ``request``, sent again every ``resend`` seconds until one comes:
             Fast DDS drops a response when the server has not yet matched the client's reader

@@ -27,6 +27,7 @@ class StageDiagnostics:
         self._latency = deque(maxlen=200)
         self._stamps = deque(maxlen=200)
         self.values: dict[str, str] = {}
+        self.listeners: dict[str, int] = {}
         self._last_report: dict[str, float] = {}
 
     def drop(self, reason: str) -> None:
@@ -86,6 +87,7 @@ class StageDiagnostics:
               'latency_max_ms': f'{1e3 * lat[-1]:.3f}' if lat else 'nan'}
         kv.update({f'dropped_{k}': str(v) for k, v in sorted(self.dropped.items())})
         kv.update(self.values)
+        kv.update({f'subscribers {topic}': str(n) for topic, n in sorted(self.listeners.items())})
         status.values = [KeyValue(key=k, value=v) for k, v in kv.items()]
         arr = DiagnosticArray(status=[status])
         arr.header.stamp = stamp

@@ -106,4 +106,7 @@ class SonarNode(Node):
             self.diag.log(self.get_logger(), StageDiagnostics.kind(text), text, severity)
 
     def _publish_diagnostics(self) -> None:
+        # Matched readers per output: whether anyone receives this node's results (and a condition tests wait on).
+        self.diag.listeners = {p.topic_name: p.get_subscription_count() for p in self.publishers
+                               if p is not self.pub_diag and p.topic_name != '/parameter_events'}
         self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))

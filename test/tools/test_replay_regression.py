@@ -97,23 +97,22 @@ def node_tracks(ros, launch, bag: Path, repeat: int = 1) -> list[tuple[int, np.n
     nodes = [launch('imm_ipda_tracker', params_file=CONFIG / 'imm_ipda.yaml'),
              launch('active_detector', f'sonar_pose:={SONAR_POSE}', 'esc.density_source:=sector')]
     try:
-        ros.wait(lambda: ros.node.count_subscribers('/detections') >= 1 and ros.node.count_publishers('/tracks') >= 1
-                 and sub.get_publisher_count() >= 1, 30.0, 'the detector and tracker')
-        time.sleep(1.0)  # let their discovery of each other settle
+        # Detections reach the tracker and tracks reach us: both writers report a matched reader.
+        ros.wait_listened([('active_detector: detection', '/detections'), ('imm_ipda_tracker: tracking', '/tracks')])
         replay = subprocess.run([sys.executable, '-m', 'sonar_tracking.tools.bag_replay', str(bag), '--fast',
                                  '--repeat', str(repeat), '--topics', '/sonar/sector', '/sonar/sector_info',
                                  '--wait-for', '/sonar/sector', '/sonar/sector_info'],
                                 capture_output=True, text=True, timeout=120)
         assert replay.returncode == 0, replay.stderr
         ros.wait(lambda: len(got) >= SCANS * repeat, 30.0, f'{SCANS * repeat} /tracks messages')
-        time.sleep(0.5)
         for proc in nodes:
             assert proc.poll() is None, proc.stderr.read()
     finally:
         ros.node.destroy_subscription(sub)
         for proc in nodes:   # the next replay must meet fresh nodes only
-            proc.send_signal(2)
-            proc.wait(10)
+            launch.stop(proc)
+        ros.wait(lambda: ros.node.count_publishers('/tracks') == 0 and ros.node.count_publishers('/detections') == 0,
+                 20.0, 'the stopped nodes to leave the graph')
     msgs = [deserialize_message(bytes(g), PointCloud2) for g in got]
     return [(ma.header_ns(m), np.array(ma.cloud_to_array(m))) for m in msgs]
 
