@@ -74,53 +74,75 @@ def gate_boxes(centres: np.ndarray, hph_diag: np.ndarray, r_diag_max: np.ndarray
 _BRUTE_FORCE_PAIRS = 20000
 
 
-def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs ``(track, measurement)`` whose measurement lies inside the track's box.
+class BoxSearch:
+    """The measurements ``z (N, d)`` inside each track's box ``lo, hi (T, d)``, found once and asked
+    for twice (a pair budget counts them before the update gates them).
 
-    ``lo, hi (T, d)``, ``z (N, d)``. Returns index arrays sorted by track (the order the IPDA
-    reductions rely on).
-
-    Measurements are binned into strips along the first axis (as wide as the mean box, and
-    never more strips than measurements) and sorted by (strip, second coordinate); each track
-    looks up, in every strip its box overlaps, the measurements within its second-axis range by
-    binary search. Only those are checked against the box, so the work follows the pairs that
-    can gate rather than tracks x measurements.
+    Measurements are binned into strips along the first axis (as wide as the mean box, and never
+    more strips than measurements) and sorted by (strip, second coordinate); each track looks up, in
+    every strip its box overlaps, the measurements within its second-axis range by binary search.
+    Only those are checked against the box, so the work follows the pairs that can gate rather than
+    tracks x measurements. Small problems test every box at once.
     """
-    n_tracks, n_meas = lo.shape[0], z.shape[0]
-    empty = np.zeros(0, dtype=np.intp)
-    if n_tracks == 0 or n_meas == 0:
-        return empty, empty
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):   # no gate: every pair
-        return np.repeat(np.arange(n_tracks), n_meas), np.tile(np.arange(n_meas), n_tracks)
-    if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS:                   # small: test every box at once
-        track, meas = np.nonzero(_inside(lo, hi, z))
-        return track, meas
-    order, tr, first, count = _strip_search(lo, hi, z)
-    track = np.repeat(tr, count)
-    start = np.cumsum(count) - count
-    meas = order[np.arange(len(track)) - np.repeat(start - first, count)]
-    keep = (z[meas, 0] >= lo[track, 0]) & (z[meas, 0] <= hi[track, 0])
-    for j in range(1, z.shape[1]):
-        zj = z[meas, j]
-        keep &= (zj >= lo[track, j]) & (zj <= hi[track, j])
-    return track[keep], meas[keep]
+
+    def __init__(self, lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> None:
+        self.lo, self.hi, self.z = lo, hi, z
+        n_tracks, n_meas = lo.shape[0], z.shape[0]
+        self.kind = ('empty' if n_tracks == 0 or n_meas == 0 else
+                     'all' if not (np.isfinite(lo).all() and np.isfinite(hi).all()) else   # no gate: every pair
+                     'dense' if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS else 'strips')
+        self._strips: tuple | None = None
+
+    def _search(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        if self._strips is None:
+            self._strips = _strip_search(self.lo, self.hi, self.z)
+        return self._strips
+
+    def pairs(self) -> tuple[np.ndarray, np.ndarray]:
+        """Pairs ``(track, measurement)`` whose measurement lies inside the track's box, as index
+        arrays sorted by track (the order the IPDA reductions rely on)."""
+        lo, hi, z = self.lo, self.hi, self.z
+        n_tracks, n_meas = lo.shape[0], z.shape[0]
+        if self.kind == 'empty':
+            empty = np.zeros(0, dtype=np.intp)
+            return empty, empty
+        if self.kind == 'all':
+            return np.repeat(np.arange(n_tracks), n_meas), np.tile(np.arange(n_meas), n_tracks)
+        if self.kind == 'dense':
+            track, meas = np.nonzero(_inside(lo, hi, z))
+            return track, meas
+        order, tr, first, count = self._search()
+        track = np.repeat(tr, count)
+        start = np.cumsum(count) - count
+        meas = order[np.arange(len(track)) - np.repeat(start - first, count)]
+        keep = (z[meas, 0] >= lo[track, 0]) & (z[meas, 0] <= hi[track, 0])
+        for j in range(1, z.shape[1]):
+            zj = z[meas, j]
+            keep &= (zj >= lo[track, j]) & (zj <= hi[track, j])
+        return track[keep], meas[keep]
+
+    def counts(self) -> np.ndarray:
+        """``(T,)`` upper bound on the pairs :meth:`pairs` returns per track, without building them
+        (the measurements of the strip search, before the exact box test)."""
+        n_tracks, n_meas = self.lo.shape[0], self.z.shape[0]
+        if self.kind == 'empty':
+            return np.zeros(n_tracks, dtype=np.intp)
+        if self.kind == 'all':
+            return np.full(n_tracks, n_meas, dtype=np.intp)
+        if self.kind == 'dense':
+            return np.count_nonzero(_inside(self.lo, self.hi, self.z), axis=1)
+        _, tr, _, count = self._search()
+        return np.bincount(tr, weights=count, minlength=n_tracks).astype(np.intp)
+
+
+def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs ``(track, measurement)`` whose measurement lies inside the track's box (:class:`BoxSearch`)."""
+    return BoxSearch(lo, hi, z).pairs()
 
 
 def candidate_counts(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """``(T,)`` upper bound on the pairs :func:`candidate_pairs` returns per track, without building them.
-
-    Counts the measurements of the strip search (before the exact box test), so the cost is
-    that of the binary searches, not of the pairs.
-    """
-    n_tracks, n_meas = lo.shape[0], z.shape[0]
-    if n_tracks == 0 or n_meas == 0:
-        return np.zeros(n_tracks, dtype=np.intp)
-    if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
-        return np.full(n_tracks, n_meas, dtype=np.intp)
-    if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS:
-        return np.count_nonzero(_inside(lo, hi, z), axis=1)
-    _, tr, _, count = _strip_search(lo, hi, z)
-    return np.bincount(tr, weights=count, minlength=n_tracks).astype(np.intp)
+    """``(T,)`` upper bound on the pairs :func:`candidate_pairs` returns per track (:class:`BoxSearch`)."""
+    return BoxSearch(lo, hi, z).counts()
 
 
 def _inside(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:

@@ -72,7 +72,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gating import candidate_counts, candidate_pairs
+from .gating import BoxSearch
 
 __all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'birth_measurements',
            'duplicate_tracks', 'excess_tracks', 'pair_budget']
@@ -175,13 +175,15 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
         half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
         reach = half[conf] + half.max(axis=0)
         lo, hi = pos[conf] - reach, pos[conf] + reach
+        search = BoxSearch(lo, hi, pos)
         if max_pairs is not None:
-            counts = candidate_counts(lo, hi, pos)
+            counts = search.counts()
             if counts.sum() > max_pairs:
                 order = np.argsort(ids[conf], kind='stable')
                 keep = np.sort(order[:max(1, int(np.count_nonzero(np.cumsum(counts[order]) <= max_pairs)))])
                 conf, lo, hi = conf[keep], lo[keep], hi[keep]
-        ci, tj = candidate_pairs(lo, hi, pos)
+                search = BoxSearch(lo, hi, pos)
+        ci, tj = search.pairs()
         ci = conf[ci]
     dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
     a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]

@@ -44,7 +44,7 @@ from ..records import TRACK_DTYPE
 from .config import MODE_NAMES, TrackerConfig
 from .coverage import Coverage
 from .errors import TrackingInputError
-from .gating import candidate_counts, candidate_pairs, gate_boxes, gate_threshold, innovations
+from .gating import BoxSearch, gate_boxes, gate_threshold, innovations
 from .imm import combine, interaction
 from .ipda import ipda_update
 from .kalman import predict, transition_operators
@@ -288,8 +288,9 @@ class ImmIpdaTracker:
         lo, hi = gate_boxes(track_side[:d], track_side[d + diag * (d + 1)], r_max, self.gamma)
         n_tracks = len(self._ids)
         bounds = [0, n_tracks]
+        search = BoxSearch(lo, hi, z)
         if n_tracks * len(z) > _CHUNK_PAIRS:
-            counts = candidate_counts(lo, hi, z)
+            counts = search.counts()
             drop = pair_budget(counts, self._confirmed, cfg.track.max_pairs)
             if drop.any():
                 rep.pair_capped = int(np.count_nonzero(drop))
@@ -298,9 +299,10 @@ class ImmIpdaTracker:
                 x_pred, P_pred, mu_pred, e_pred = x_pred[..., keep], P_pred[..., keep], mu_pred[:, keep], e_pred[keep]
                 track_side, lo, hi, counts = track_side[..., keep], lo[keep], hi[keep], counts[keep]
                 n_tracks = len(self._ids)
+                search = BoxSearch(lo, hi, z)
             bounds = _chunk_bounds(counts, _CHUNK_PAIRS)
-        if len(bounds) == 2:
-            res, pt, pm = self._update_chunk(x_pred, P_pred, mu_pred, e_pred, track_side, lo, hi, z, meas_side, rho)
+        if len(bounds) == 2:   # one group: the search that counted the pairs finds them
+            res, pt, pm = self._update_chunk(x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho)
             self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
         else:
             self._x, self._P = np.empty_like(x_pred), np.empty_like(P_pred)
@@ -308,7 +310,8 @@ class ImmIpdaTracker:
             pts, pms = [], []
             for a, b in zip(bounds[:-1], bounds[1:]):
                 res, pt, pm = self._update_chunk(x_pred[..., a:b], P_pred[..., a:b], mu_pred[:, a:b], e_pred[a:b],
-                                                 track_side[..., a:b], lo[a:b], hi[a:b], z, meas_side, rho)
+                                                 track_side[..., a:b], BoxSearch(lo[a:b], hi[a:b], z), z, meas_side,
+                                                 rho)
                 self._x[..., a:b], self._P[..., a:b], self._mu[:, a:b] = res.x, res.P, res.mu
                 self._exist[a:b] = res.existence
                 pts.append(pt + a)
@@ -317,10 +320,10 @@ class ImmIpdaTracker:
         self._xc, self._Pc = combine(self._mu, self._x, self._P)                     # eqs. (41)-(42)
         return pt, pm
 
-    def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, lo, hi, z, meas_side, rho):
+    def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho):
         """Gate and update a contiguous group of tracks (eqs. 25-40); pairs indexed within the group."""
         cfg, d = self.config, self.d
-        pt, pm = candidate_pairs(lo, hi, z)
+        pt, pm = search.pairs()
         tg = np.take(track_side, pt, axis=-1)
         mg = np.take(meas_side, pm, axis=-1)
         innov = innovations(mg[:d], mg[d:].reshape(d, d, -1), tg[:d],
