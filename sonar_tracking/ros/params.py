@@ -23,7 +23,7 @@ from rclpy.parameter import Parameter
 
 from sonar_tracking.core.config import Config, ConfigError, Setting
 
-__all__ = ['ConfigParameters', 'descriptor_for', 'start_value']
+__all__ = ['ConfigParameters', 'descriptor_for', 'start_value', 'declare_choice']
 
 _TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
           float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
@@ -72,6 +72,16 @@ def start_value(node: Node, s: Setting, default: Any) -> Any:
         node.get_logger().error(f'parameter {exc}; using {default!r}')
         return default
     return _ros_value(given)
+
+
+def declare_choice(node: Node, s: Setting, default: str, choices: tuple[str, ...]) -> str:
+    """Declare setting ``s`` read before the others because it decides their defaults (a scenario, a
+    preset): its start-up value if it is one of ``choices``, else ``default`` with the reason logged."""
+    value = start_value(node, s, default)
+    if value not in choices:
+        node.get_logger().error(f'parameter {s.name}: {value!r} is not one of {list(choices)}; using {default!r}')
+        value = default
+    return node.declare_parameter(s.name, value, descriptor_for(s), ignore_override=True).value
 
 
 class ConfigParameters:

@@ -18,13 +18,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import Config, ConfigError, setting
+from ..records import TRUTH_DTYPE
 from .amplitude import AmplitudeConfig, AmplitudeModel
 from .harbour import HarbourConfig, HarbourSonar
 from .presets import SCENARIOS, SENSOR_PRESETS, STRUCTURE_PRESETS, build_scene, scenario_info
 from .scene import Scene
 from .seaking import SeaKingConfig, SeaKingSonar
 from .sensor import SimSector
-from .structure import OutputConfig, StructureConfig, build_structure, encode_output
+from .structure import OutputConfig, StructureConfig, build_structure, decode_output, encode_output
 
 __all__ = ['SimConfig', 'Simulator', 'child_seeds', 'child_generators']
 
@@ -135,6 +136,18 @@ class Simulator:
     def truth(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Target ids and world states ``[x, y, vx, vy]`` at ``t``."""
         return self.scene.truth(t)
+
+    def truth_records(self, t: float) -> np.ndarray:
+        """The targets at ``t`` as ``TRUTH_DTYPE`` records (what ``sonar/truth`` carries)."""
+        ids, states = self.scene.truth(t)
+        out = np.zeros(len(ids), TRUTH_DTYPE)
+        out['target_id'] = ids
+        out['x'], out['y'], out['vx'], out['vy'] = states.T
+        return out
+
+    def linear(self, values: np.ndarray) -> np.ndarray:
+        """A sector's values as :meth:`next_sector` gives them, back to linear amplitude (for pictures)."""
+        return decode_output(values, self.config.output)
 
     def set_clutter_lambda(self, lam: float) -> None:
         """Change the background clutter rate from the next sector on."""

@@ -48,14 +48,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..config import Config, ConfigError, setting
-from ..intensity import encode_db
+from ..intensity import decode, encode_db
 from .motion import StaticTrajectory
 from .presets import HARBOUR_SONAR_XY
 from .scene import Target
 from .shapes import Shape
 
 __all__ = ['STRUCTURE_KINDS', 'OUTPUT_CODINGS', 'StructureConfig', 'OutputConfig', 'Structure', 'RoughShape',
-           'Texture', 'build_structure', 'encode_output', 'TANK_WALLS', 'HARBOUR_WALLS', 'HARBOUR_PILES']
+           'Texture', 'build_structure', 'encode_output', 'decode_output', 'TANK_WALLS', 'HARBOUR_WALLS',
+           'HARBOUR_PILES']
 
 STRUCTURE_KINDS = ('none', 'tank', 'harbour')
 OUTPUT_CODINGS = ('linear_amplitude', 'db')
@@ -128,6 +129,13 @@ def encode_output(amplitudes: np.ndarray, config: OutputConfig) -> np.ndarray:
     if config.coding == 'db':
         return encode_db(amplitudes, config.db_span, 255, reference=config.gain_floor)
     return amplitudes
+
+
+def decode_output(values: np.ndarray, config: OutputConfig) -> np.ndarray:
+    """Published sector values back to linear amplitude, relative to the counts' reference (``intensity.decode``)."""
+    if config.coding == 'db':
+        return decode(values, 'db', db_span=config.db_span, full_scale=255.0)
+    return values
 
 
 @dataclass(frozen=True, eq=False)
