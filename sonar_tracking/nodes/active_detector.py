@@ -28,13 +28,13 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 import msg_adapters as ma
-from sonar_tracking.core.config import ConfigError, setting
-from sonar_tracking.core.detection import (ActiveDetector, DesiredDensityTable, DetectionInputError, DetectorConfig,
-                                           TableError)
+from sonar_tracking.core.config import setting
+from sonar_tracking.core.detection import (ActiveDetector, DetectionInputError, DetectorConfig, best_track_focus,
+                                           resolve_desired_density)
 from sonar_tracking.resources import config_path
 from sonar_tracking.ros import SectorInput, SectorInputConfig, SonarNode, latest_profile, output_profile, run_node
 
-__all__ = ['DetectorNodeConfig', 'ActiveDetectorNode', 'main', 'resolve_desired_density']
+__all__ = ['DetectorNodeConfig', 'ActiveDetectorNode', 'main', 'desired_density']
 
 
 @dataclass(frozen=True)
@@ -50,15 +50,9 @@ def detector_config(config: DetectorNodeConfig, enabled: bool | None = None) -> 
     return core if enabled is None else dataclasses.replace(core, esc=dataclasses.replace(core.esc, enabled=enabled))
 
 
-def resolve_desired_density(config: DetectorConfig) -> float:
-    """rho_D: the parameter, or the desired-density table at ``esc.snr_db`` when it is 0."""
-    if config.esc.desired_clutter_density > 0:
-        return config.esc.desired_clutter_density
-    try:
-        table = DesiredDensityTable.load(config_path('desired_density.yaml'))
-        return table.lookup(config.esc.snr_db)
-    except (FileNotFoundError, TableError) as exc:
-        raise ConfigError(f'esc.desired_clutter_density = 0 asks for the desired-density table, but: {exc}') from None
+def desired_density(config: DetectorConfig) -> float:
+    """rho_D: the parameter, or the package's desired-density table at ``esc.snr_db`` when it is 0."""
+    return resolve_desired_density(config, lambda: config_path('desired_density.yaml'))
 
 
 class ActiveDetectorNode(SonarNode):
@@ -66,8 +60,8 @@ class ActiveDetectorNode(SonarNode):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('active_detector', DetectorNodeConfig(), 'active_detector: detection',
-                         check=resolve_desired_density, **kwargs)
-        self.detector = ActiveDetector(detector_config(self.config), resolve_desired_density(self.config))
+                         check=desired_density, **kwargs)
+        self.detector = ActiveDetector(detector_config(self.config), desired_density(self.config))
         self.best_track: tuple[float, float] | None = None
         self.input = SectorInput(self, self._process, self._on_reset)
         self.subscribe(PointCloud2, 'tracks', self._on_tracks, 10)
@@ -87,7 +81,7 @@ class ActiveDetectorNode(SonarNode):
             try:
                 self.detector.reconfigure(core)     # intensity, structure, max_detections: ESC goes on
             except ValueError:
-                self.detector = ActiveDetector(core, resolve_desired_density(core))
+                self.detector = ActiveDetector(core, desired_density(core))
                 self.pub_threshold.publish(Float64(data=self.detector.threshold))
                 self.get_logger().info(f'detector parameters changed: restarted from threshold '
                                        f'{self.detector.threshold:g}')
@@ -103,10 +97,7 @@ class ActiveDetectorNode(SonarNode):
         if not {'x', 'y', 'existence', 'confirmed'} <= set(tracks.dtype.names or ()):
             self.say('error', f'tracks message without x, y, existence, confirmed: {tracks.dtype.names}', 'bad_tracks')
             return
-        ok = tracks[(tracks['confirmed'] > 0) & np.isfinite(tracks['x']) & np.isfinite(tracks['y'])
-                    & np.isfinite(tracks['existence'])]
-        self.best_track = (float(ok['x'][np.argmax(ok['existence'])]),
-                           float(ok['y'][np.argmax(ok['existence'])])) if len(ok) else None
+        self.best_track = best_track_focus(tracks)
 
     # -- processing --------------------------------------------------------------------------
     def _on_reset(self) -> None:
@@ -125,14 +116,10 @@ class ActiveDetectorNode(SonarNode):
         self.pub_threshold.publish(Float64(data=result.threshold))
         self.pub_density.publish(Float64(data=result.mean_density))
         self.diag.done(started)
-        self.diag.values = {'threshold': f'{result.threshold:.4f}', 'threshold_stamp': f'{stamp / 1e9:.6f}',
-                            'next_threshold': f'{result.next_threshold:.4f}',
-                            'clutter_density': f'{result.mean_density:.4g}',
-                            'desired_clutter_density': f'{self.detector.desired_density:.4g}',
-                            'detections': str(len(result.detections)), 'found': str(result.found),
-                            'structure': str(result.structure), 'cut_max_detections': str(result.cut),
-                            'esc': 'on' if self.detector.enabled else 'off',
-                            'odometry': 'yes' if self.input.has_odometry else 'no (sonar_pose)'}
+        self.diag.values = result.summary() | {
+            'threshold_stamp': f'{stamp / 1e9:.6f}', 'desired_clutter_density': f'{self.detector.desired_density:.4g}',
+            'esc': 'on' if self.detector.enabled else 'off',
+            'odometry': 'yes' if self.input.has_odometry else 'no (sonar_pose)'}
         return True
 
     # -- services ----------------------------------------------------------------------------

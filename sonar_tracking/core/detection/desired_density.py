@@ -9,11 +9,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import yaml
 
-__all__ = ['DesiredDensityTable', 'TableError']
+from ..config import ConfigError
+
+__all__ = ['DesiredDensityTable', 'TableError', 'resolve_desired_density']
 
 
 class TableError(ValueError):
@@ -52,3 +55,14 @@ class DesiredDensityTable:
         if not lo - 1e-9 <= snr_db <= hi + 1e-9:
             raise TableError(f'SNR {snr_db:g} dB is outside the table ({lo:g} to {hi:g} dB) in {self.source}')
         return float(math.exp(np.interp(snr_db, self.snr_db, np.log(self.density))))
+
+
+def resolve_desired_density(config, table: Callable[[], str | Path]) -> float:
+    """rho_D of a detector ``config``: ``esc.desired_clutter_density``, or when that is 0 the table
+    (``table()``: its path) at ``esc.snr_db`` (Algorithm 1). ConfigError says why when neither serves."""
+    if config.esc.desired_clutter_density > 0:
+        return config.esc.desired_clutter_density
+    try:
+        return DesiredDensityTable.load(table()).lookup(config.esc.snr_db)
+    except (FileNotFoundError, TableError) as exc:
+        raise ConfigError(f'esc.desired_clutter_density = 0 asks for the desired-density table, but: {exc}') from None

@@ -58,7 +58,7 @@ from .esc import ExtremumSeekingController
 from .scmde import PolarWindow, scmde, sunflower
 
 __all__ = ['ThresholdConfig', 'CellConfig', 'ScmdeConfig', 'EscConfig', 'DetectorConfig', 'ActiveDetector',
-           'ScanResult', 'DetectionInputError']
+           'ScanResult', 'DetectionInputError', 'best_track_focus']
 
 _SQRT12 = 2.0 * math.sqrt(3.0)
 _DISC = sunflower(256)
@@ -161,6 +161,12 @@ class ScanResult:
     structure: int = 0       # of those, dropped as static structure (shape gates or persistent echo)
     cut: int = 0             # of the rest, dropped by cells.max_detections (the weakest)
     held: bool = False       # the structure background is warming up: no detection is output
+
+    def summary(self) -> dict[str, str]:
+        """The scan's figures as text (a diagnostics report)."""
+        return {'threshold': f'{self.threshold:.4f}', 'next_threshold': f'{self.next_threshold:.4f}',
+                'clutter_density': f'{self.mean_density:.4g}', 'detections': str(len(self.detections)),
+                'found': str(self.found), 'structure': str(self.structure), 'cut_max_detections': str(self.cut)}
 
 
 class ActiveDetector:
@@ -353,3 +359,15 @@ class ActiveDetector:
                 near = (xy[:, 0] - focus_xy[0]) ** 2 + (xy[:, 1] - focus_xy[1]) ** 2 <= radius ** 2
                 return float(near.sum() / (math.pi * radius ** 2 * inside))
         return float(rho.mean()) if len(rho) else 0.0
+
+
+def best_track_focus(tracks: np.ndarray) -> tuple[float, float] | None:
+    """Where ESC measures the density with ``esc.density_source: best_track`` (§5.2): the position of
+    the confirmed track of highest existence among ``tracks`` (``x, y, existence, confirmed``
+    records); None without one. Tracks with a non-finite position or existence are passed over."""
+    ok = tracks[(tracks['confirmed'] != 0) & np.isfinite(tracks['x']) & np.isfinite(tracks['y'])
+                & np.isfinite(tracks['existence'])]
+    if not len(ok):
+        return None
+    best = ok[np.argmax(ok['existence'])]
+    return float(best['x']), float(best['y'])

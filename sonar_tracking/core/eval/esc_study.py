@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..detection import ActiveDetector, DetectorConfig, convert_measurements
+from ..detection import ActiveDetector, DetectorConfig, best_track_focus, convert_measurements
 from ..sim import SimConfig, Simulator
 from ..sim.amplitude import snr_linear
 from ..sim.presets import HARBOUR_SONAR_XY
@@ -177,11 +177,7 @@ def run_once(study: StudyConfig, seed: np.random.SeedSequence) -> dict[str, dict
                                                                         tracks['existence'].tolist(), label)
             rec['has_ctt'][k], rec['error'][k] = ev.has_ctt[0], ev.error[0]
             rec['threshold'][k], rec['clutter_density'][k], rec['n_false'][k] = r.threshold, r.mean_density, ev.n_false
-            conf = tracks[tracks['confirmed'] != 0]
-            focus = None
-            if len(conf):
-                best = conf[np.argmax(conf['existence'])]
-                focus = (float(best['x']), float(best['y']))
+            focus = best_track_focus(tracks)
         out[method.name] = rec
     return out
 
