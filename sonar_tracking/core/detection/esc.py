@@ -30,11 +30,12 @@ with ``A_max = 0.1 tau_0`` and ``d = 0.9``.
 
 Gain: ``beta`` makes every step proportional to ``tau_0``; with a unit integrator gain (the
 paper's step) the loop overshoots and cycles on the harbour sonar already from the paper's
-``tau_0 = 3``: in Scenario 1 (lambda 1.2) only about a third of the runs are within 5 % of tau* at
-scan 30, fewer from higher ``tau_0`` (docs/experiments/2026-11-21-esc-paper-reproduction.md). The Euler step (the
-integrator gain) is therefore 0.15 by default: near the optimum the step is ``0.15 tau_0 (rho_D / rho_k - 1)^2``,
-small against the per-scan noise of ``rho_k`` (about 17 % with 35 clutter detections), while a
-scan far from the optimum still moves the threshold by up to ``0.44 tau_0``.
+``tau_0 = 3``: in Scenario 1 (lambda 1.2) only about a third of the runs are within 5 % of tau*
+at scan 30, fewer from higher ``tau_0`` (docs/experiments/2026-11-21-esc-paper-reproduction.md).
+The Euler step (the integrator gain) is therefore 0.15 by default: near the optimum the step is
+``0.15 tau_0 (rho_D / rho_k - 1)^2``, small against the per-scan noise of ``rho_k`` (about 17 %
+with 35 clutter detections), while a scan far from the optimum still moves the threshold by up to
+``0.44 tau_0``.
 
 Figure 1 is not in the text, and §3 says both that the
 squared compandor output is "multiplied by beta * delta_k" and that the dither is *added* to the
