@@ -82,8 +82,17 @@ def frames_of(got: dict) -> list[tuple]:
     return out
 
 
-def wait_for_node(ros, name='fls_features', timeout=30.0):
-    ros.wait(lambda: name in [n for n, _ in ros.node.get_node_names_and_namespaces()], timeout, f'{name} to start')
+def start_when_ready(ros, launch, subs, *params: str):
+    """The simulator (``params`` added), started once every reader of the run is matched: fls_features'
+    outputs with our readers (its /diagnostics say so), the simulator's truth with ours (``subs[-1]``).
+    It waits for two sector readers, fls_features and ours, and ours is the last to come."""
+    from sensor_msgs.msg import Image, LaserScan
+    ros.wait_listened([('fls_features: segmentation', t) for t in ('/fls/image', '/fls/image_info', '/fls/regions')])
+    sim = launch('seaking_sim', *params, 'rate:=0.0', 'wait_for_subscribers:=2', 'shutdown_when_done:=true')
+    ros.wait(lambda: subs[-1].get_publisher_count() >= 1, 30.0, 'the simulator to match our truth reader')
+    subs += [ros.node.create_subscription(Image, '/sonar/sector', lambda m: None, KEEP_ALL),
+             ros.node.create_subscription(LaserScan, '/sonar/sector_info', lambda m: None, KEEP_ALL)]
+    return sim
 
 
 def test_images_grid_and_regions_from_the_simulator(ros, launch):
@@ -91,9 +100,7 @@ def test_images_grid_and_regions_from_the_simulator(ros, launch):
     got, truths = {}, []
     subs = subscribe(ros, got) + [ros.node.create_subscription(PointCloud2, '/sonar/truth', truths.append, KEEP_ALL)]
     node = launch('fls_features', params_file=CONFIG)
-    wait_for_node(ros)
-    sim = launch('seaking_sim', 'scenario:=fls14', 'seed:=2', 'duration:=15.2', 'rate:=0.0', 'snr_db:=25.0',
-                 'wait_for_subscribers:=1', 'shutdown_when_done:=true')
+    sim = start_when_ready(ros, launch, subs, 'scenario:=fls14', 'seed:=2', 'duration:=15.2', 'snr_db:=25.0')
     wait_processed(ros, sim)
     frames = frames_of(complete_frames(ros, got))
     for s in subs:
@@ -121,9 +128,7 @@ def test_moving_platform_regions_in_the_world_frame(ros, launch):
     got, truths = {}, []
     subs = subscribe(ros, got) + [ros.node.create_subscription(PointCloud2, '/sonar/truth', truths.append, KEEP_ALL)]
     launch('fls_features')
-    wait_for_node(ros)
-    sim = launch('seaking_sim', 'scenario:=sea_trial', 'seed:=1', 'duration:=41.0', 'rate:=0.0', 'snr_db:=30.0',
-                 'wait_for_subscribers:=1', 'shutdown_when_done:=true')
+    sim = start_when_ready(ros, launch, subs, 'scenario:=sea_trial', 'seed:=1', 'duration:=41.0', 'snr_db:=30.0')
     wait_processed(ros, sim)
     frames = frames_of(complete_frames(ros, got))
     for s in subs:
