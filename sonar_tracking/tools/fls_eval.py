@@ -27,7 +27,7 @@ import numpy as np
 
 from ._output import write_json, write_plot
 
-__all__ = ['add_arguments', 'main_args', 'run_study', 'study_for', 'plot']
+__all__ = ['add_arguments', 'main_args', 'run_study', 'study_for', 'plot', 'add_table_arguments', 'main_table']
 
 SEA_TRIAL = 'sea-trial'
 
@@ -94,7 +94,8 @@ def _example(run: dict, methods: tuple[str, ...]) -> dict:
             'tracks': {m: [np.round(t, 4).tolist() for t in run['tracks'][m]] for m in methods}}
 
 
-_STYLE = {'af': ('C3', '-', 'proposed (AF)'), 'mf': ('C0', '--', 'MF'), 'wf': ('C2', '-.', 'WF'),
+_STYLE = {'af': ('C3', '-', 'proposed (AF)'), 'af18': ('C5', '-', 'AF, eq. 18 alone'), 'mf': ('C0', '--', 'MF'),
+          'wf': ('C2', '-.', 'WF'),
           'pf': ('C1', ':', 'PF'), 'ekf': ('C4', (0, (5, 1, 1, 1)), 'EKF')}
 
 
@@ -211,3 +212,47 @@ if __name__ == '__main__':  # pragma: no cover - use sonar_eval fls
     p = argparse.ArgumentParser(prog='sonar_eval fls', description=__doc__.split('\n\n')[0])
     add_arguments(p)
     raise SystemExit(main_args(p.parse_args()))
+
+
+def add_table_arguments(parser: Any) -> None:
+    """Arguments of ``sonar_eval fls-table``."""
+    from sonar_tracking.core.eval.fls_table import TABLE_METHODS, TABLE_SITUATIONS
+    from sonar_tracking.core.eval.montecarlo import add_pool_arguments
+    parser.add_argument('--runs', type=int, default=1000, help='Monte Carlo runs per situation (default 1000)')
+    parser.add_argument('--seed', type=int, default=4000)
+    parser.add_argument('--situations', default=','.join(map(str, TABLE_SITUATIONS)),
+                        help='comma list of Table 5 situations (default the crossings 8-11)')
+    parser.add_argument('--methods', default=','.join(TABLE_METHODS),
+                        help='comma list; the first is paired with each other (default af,af18,mf,wf)')
+    add_pool_arguments(parser)
+    parser.add_argument('--json', type=Path, default=None, help='write the results here')
+
+
+def main_table(args: Any) -> int:
+    """Run the FLS crossing comparison; print the README table."""
+    from sonar_tracking.core.eval.fls_study import parse_methods
+    from sonar_tracking.core.eval.fls_table import format_table, run_table
+    from sonar_tracking.core.eval.montecarlo import ClusterUnavailable, pool_from_args
+    try:
+        methods = parse_methods(args.methods)
+        situations = [int(n) for n in args.situations.split(',') if n.strip()]
+    except ValueError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    if args.runs < 2 or args.jobs < 1 or not situations or any(not 1 <= n <= 14 for n in situations):
+        print('error: need --runs >= 2, --jobs >= 1 and situations among 1-14', file=sys.stderr)
+        return 2
+    t0 = time.monotonic()
+    try:
+        with pool_from_args(args) as pool:
+            result = run_table(args.runs, args.seed, pool, situations, methods)
+            where = pool.describe()
+    except ClusterUnavailable as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    result['wall_s'] = time.monotonic() - t0
+    print(f'fls-table: {result["wall_s"]:.0f} s on {where}')
+    print(format_table(result))
+    if args.json:
+        write_json(args.json, result)
+    return 0

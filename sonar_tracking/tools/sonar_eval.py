@@ -10,6 +10,8 @@ Subcommands:
                    CFT rate of 0.005), paired differences with 95 % intervals: the README table
   select-features  FLS paper §3: GRNN feature selection by SFS or SBS on simulated tank regions
   fls              FLS paper §5: GPF, SIR and EKF tracks on Table 5 situations or the sea trial
+  fls-table        FLS paper: the crossing situations 8-11 by fusion, paired differences with 95 %
+                   intervals and where the corrections come from: the README table
   structure        confirmed tracks on static structure (walls, seabed, piles, ringdown), with and
                    without rejection, next to the structure-free scenes
 
@@ -56,6 +58,10 @@ def build_parser() -> argparse.ArgumentParser:
                        'sea-trial preset, CLE by method')
     fls_eval.add_arguments(p)
     p.set_defaults(handler=fls_eval.main_args)
+    p = sub.add_parser('fls-table', help='FLS paper: the crossing situations 8-11, af (crossing switch), af18 '
+                       '(eq. 18 alone), mf, wf paired, with where the corrections come from (the README table)')
+    fls_eval.add_table_arguments(p)
+    p.set_defaults(handler=fls_eval.main_table)
     p = sub.add_parser('structure', help='confirmed tracks on static structure of the structured scenes, with and '
                        'without rejection, and the targets against the structure-free twin')
     structure_eval.add_arguments(p)

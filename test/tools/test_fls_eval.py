@@ -57,3 +57,34 @@ def test_argument_errors_from_the_parser(tmp_path, capsys, args):
         main(['fls', *args, '--json', str(tmp_path / 'x.json')])
     assert exc.value.code == 2
     assert 'error' in capsys.readouterr().err
+
+
+def test_fls_table_reduced_prints_the_table_and_agrees_with_sonar_eval_fls(tmp_path, capsys):
+    """The README table's command, reduced: every figure is the one `sonar_eval fls` gives for the
+    same situation, runs and seed, and the corrections add up (the EKF corrects only by regions)."""
+    table, single = tmp_path / 'table.json', tmp_path / 'fls.json'
+    assert main(['fls-table', '--runs', '3', '--seed', '5', '--situations', '8', '--methods', 'af,af18,ekf',
+                 '--jobs', '1', '--json', str(table)]) == 0
+    printed = capsys.readouterr().out
+    assert '| situation | af CLE | af18 CLE | ekf CLE | af − af18 | af − ekf |' in printed
+    assert '\n| 8 | ' in printed
+    assert main(['fls', '--situation', '8', '--runs', '3', '--seed', '5', '--methods', 'af,af18,ekf', '--jobs', '1',
+                 '--json', str(single)]) == 0
+    rows = json.loads(table.read_text())['situations'][0]['methods']
+    ref = json.loads(single.read_text())['methods']
+    for m in ('af', 'af18', 'ekf'):
+        runs = [v for v in ref[m]['cle_run'] if v is not None]
+        assert rows[m]['cle'] == pytest.approx(sum(runs) / len(runs), rel=1e-12)
+        assert rows[m]['identity_kept_rate'] == ref[m]['identity_kept_rate']
+        c = rows[m]['corrections']
+        assert c == ref[m]['corrections'] and c['image'] + c['region'] > 0 and c['coasting'] >= 0
+    assert rows['af18']['paired_first_minus'] == ref['af18']['paired_with_first']
+    assert rows['ekf']['corrections']['image'] == 0 and rows['ekf']['corrections']['image_share'] == 0.0
+    assert 0.0 < rows['af']['corrections']['image_share'] < 1.0
+
+
+def test_fls_table_refuses_bad_arguments(capsys):
+    assert main(['fls-table', '--runs', '1']) == 2
+    assert main(['fls-table', '--runs', '3', '--situations', '15']) == 2
+    assert main(['fls-table', '--runs', '3', '--methods', 'af,xx']) == 2
+    assert 'error' in capsys.readouterr().err

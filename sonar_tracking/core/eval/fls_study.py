@@ -1,7 +1,8 @@
 """The FLS paper's tracking study (§5): Table 5 situations and the sea trial, by method, Monte Carlo.
 
 One run simulates a situation's frames once (:func:`~.fls_frames.simulate_tracking_frames`) and
-hands the *same* frames to every method (common random numbers): the GPF with adaptive (``af``),
+hands the *same* frames to every method (common random numbers): the GPF with adaptive (``af``:
+eq. 18 plus the crossing switch, the default; ``af18``: eq. 18 alone, ``fusion.switch: cues``),
 multiplicative (``mf``) or weighted (``wf``) fusion, the SIR particle filter (``pf``, on the same
 cues with multiplicative fusion) and the EKF on the regions (``ekf``). Every particle method also
 starts from the same random stream of the run, so methods that take the same decisions draw the
@@ -20,6 +21,9 @@ Scoring, per target and frame, against the target's state as imaged (:mod:`.fls_
 * **Lost frame**: a frame where the target has no owner or its owner is farther than ``gate``.
   ``cle_capped_mean`` counts such frames as ``gate`` and caps the CLE there (an OSPA-like
   figure that a method cannot improve by dropping tracks).
+* **Corrections**: per method, the track-frames corrected by the image (the particles weighed by
+  the window features, eqs. 13-18), by re-finding a segmented region (a Kalman update on its
+  centroid; every EKF correction is one), and neither (coasting).
 * **Identity kept through a crossing** (two targets whose true paths come within
   ``cross_distance`` of each other): the owner of each target in the last frame before they
   come that close is, in most frames after they have parted again, within ``gate`` of the same
@@ -53,7 +57,7 @@ __all__ = ['METHODS', 'FlsStudy', 'parse_methods', 'situation_scenario', 'run_me
            'reliability_statistics', 'switch_thresholds']
 
 #: Methods of the study, in the order of Figures 13, 16 and 19.
-METHODS = ('af', 'mf', 'wf', 'pf', 'ekf')
+METHODS = ('af', 'af18', 'mf', 'wf', 'pf', 'ekf')
 
 
 def parse_methods(text: str) -> tuple[str, ...]:
@@ -95,26 +99,42 @@ class FlsStudy:
 def _tracker(study: FlsStudy, method: str, rng: np.random.Generator):
     if method == 'ekf':
         return EkfTracker(study.config, study.ekf)
-    mode = 'mf' if method == 'pf' else method
-    cfg = study.config.from_flat({'fusion.mode': mode}, base=study.config)
+    flat = {'fusion.mode': {'pf': 'mf', 'af18': 'af'}.get(method, method)}
+    if method == 'af18':
+        flat['fusion.switch'] = 'cues'
+    cfg = study.config.from_flat(flat, base=study.config)
     return GpfTracker(cfg, rng, method='sir' if method == 'pf' else 'gpf', feature_config=study.fls.features)
 
 
-def run_methods(study: FlsStudy, frames: list[TrackingFrame], seed: np.random.SeedSequence) -> dict[str, list]:
-    """Every method's track records per frame on the same frames."""
+def run_methods(study: FlsStudy, frames: list[TrackingFrame], seed: np.random.SeedSequence,
+                corrections: dict | None = None) -> dict[str, list]:
+    """Every method's track records per frame on the same frames; ``corrections`` (when given)
+    receives per method the track-frames corrected by the image, by a region, and coasting."""
     out = {}
     for method in study.methods:
         rng = np.random.default_rng(seed)     # the same stream for every method: see module docstring
         tracker = _tracker(study, method, rng)
-        per_frame = []
+        per_frame, counts = [], np.zeros(3, dtype=np.int64)
         for tf in frames:
             f = tf.frame
             if method == 'ekf':
                 per_frame.append(tracker.step(f.stamp, f.regions, f.sensor_pose))
             else:
                 per_frame.append(tracker.step(f.stamp, f.image, f.grid, f.regions, f.sensor_pose))
+            rep = tracker.report
+            counts += _corrections(rep.seen, rep.missed, rep.reseeded, method == 'ekf')
         out[method] = per_frame
+        if corrections is not None:
+            corrections[method] = counts
     return out
+
+
+def _corrections(seen: int, missed: int, reseeded: int, regions_only: bool) -> tuple[int, int, int]:
+    """``(image, region, coasting)`` track counts of one frame from a tracker's report: a particle
+    track seen was corrected by the image, one re-found by a region; every EKF update is a region."""
+    if regions_only:
+        return 0, seen, missed
+    return seen, reseeded, missed - reseeded
 
 
 def crossing_window(frames: list[TrackingFrame], distance: float) -> tuple[int, int] | None:
@@ -190,12 +210,13 @@ def run_once(study: FlsStudy, seed: np.random.SeedSequence) -> dict:
     """One Monte Carlo run: simulate, track with every method, score (module docstring)."""
     sim_seed, track_seed = child_seeds(seed, 2)  # not seed.spawn: that changes the caller's sequence
     frames = simulate_tracking_frames(study.scenario, sim_seed, study.fls, study.preset, **dict(study.sim_overrides))
-    tracks = run_methods(study, frames, track_seed)
+    corrections: dict = {}
+    tracks = run_methods(study, frames, track_seed, corrections)
     scores = {m: score_run(frames, recs, study.gate, study.cross_distance) for m, recs in tracks.items()}
     truth = np.stack([tf.truth for tf in frames]) if frames else np.zeros((0, 0, 4))
     est = {m: [np.column_stack([r['track_id'], r['x'], r['y']]) for r in recs] for m, recs in tracks.items()}
     return {'stamps': np.array([tf.stamp for tf in frames]), 'ids': frames[0].ids if frames else np.zeros(0),
-            'truth': truth, 'scores': scores, 'tracks': est}
+            'truth': truth, 'scores': scores, 'tracks': est, 'corrections': corrections}
 
 
 def summarise(study: FlsStudy, runs: list[dict]) -> dict:
@@ -216,6 +237,9 @@ def summarise(study: FlsStudy, runs: list[dict]) -> dict:
             'identity_changes': [float((acq[:, t] - 1).clip(0).mean()) for t in range(cle.shape[1])],
             'runs_never_tracked': [int((acq[:, t] == 0).sum()) for t in range(cle.shape[1])],
         }
+        image, region, coast = np.sum([r['corrections'][m] for r in runs], axis=0).tolist()
+        res['corrections'] = {'image': image, 'region': region, 'coasting': coast,
+                              'image_share': image / (image + region) if image + region else None}
         run_means[m] = np.array([run_cle(c) for c in cle])
         res['cle_run'] = [_finite(v) for v in run_means[m]]
         ident = [r['scores'][m]['identity'] for r in runs]

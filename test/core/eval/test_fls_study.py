@@ -100,7 +100,8 @@ def _run(cle, identity):
     lost = np.isnan(cle) | (cle > GATE)
     return {'scores': {'af': {'cle': cle, 'lost': lost, 'capped': np.where(lost, GATE, cle),
                               'acquisitions': np.ones(cle.shape[0], np.int64),
-                              'identity': None if identity is None else np.asarray(identity, float)}}}
+                              'identity': None if identity is None else np.asarray(identity, float)}},
+            'corrections': {'af': np.array([2, 1, 1])}}
 
 
 def test_summarise_means_lost_frames_and_identity_rate():
@@ -115,6 +116,8 @@ def test_summarise_means_lost_frames_and_identity_rate():
     assert r['lost_frames'] == pytest.approx([(1 + 2 + 3) / 3, 0.0])
     assert r['identity_runs'] == 2 and r['identity_kept_rate'] == pytest.approx(0.5)
     assert r['identity_kept_rate_per_target'] == pytest.approx([0.5, 1.0])
+    # Track-frames by what corrected them, summed over the runs.
+    assert r['corrections'] == {'image': 6, 'region': 3, 'coasting': 3, 'image_share': pytest.approx(6 / 9)}
 
 
 def test_run_cle_averages_targets_over_their_defined_frames():
@@ -141,6 +144,7 @@ def test_summarise_pairs_every_method_with_the_first_run_by_run():
     for af, wf in ((0.3, 0.4), (0.5, 0.5), (0.2, 0.6)):
         r = _run([[af, af]], None)
         r['scores']['wf'] = _run([[wf, wf]], None)['scores']['af']
+        r['corrections']['wf'] = np.array([0, 3, 1])
         runs.append(r)
     out = summarise(Study, runs)
     assert out['af']['cle_run'] == pytest.approx([0.3, 0.5, 0.2]) and 'paired_with_first' not in out['af']
@@ -158,6 +162,19 @@ def test_switch_thresholds_meet_the_healthy_mf_rate():
     np.testing.assert_allclose(t, np.percentile(samples, p, axis=0))
     with pytest.raises(ValueError):
         switch_thresholds(np.zeros((0, 5)))
+
+
+def test_af18_is_eq_18_alone_and_af_keeps_the_crossing_switch():
+    from sonar_tracking.core.eval.fls_study import FlsStudy, _tracker
+    study = FlsStudy('fls8')
+    af, af18 = (_tracker(study, m, np.random.default_rng(0)).config.fusion for m in ('af', 'af18'))
+    assert (af.mode, af.switch) == ('af', 'crossing') and (af18.mode, af18.switch) == ('af', 'cues')
+
+
+def test_corrections_of_a_frame_from_the_tracker_report():
+    from sonar_tracking.core.eval.fls_study import _corrections
+    assert _corrections(seen=4, missed=3, reseeded=2, regions_only=False) == (4, 2, 1)
+    assert _corrections(seen=4, missed=3, reseeded=0, regions_only=True) == (0, 4, 3)
 
 
 def test_methods_and_situations():
