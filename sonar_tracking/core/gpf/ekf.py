@@ -4,9 +4,9 @@ Where the GPF and the SIR filter weigh the image at every particle, the EKF sees
 segmentation found: each region of ``/fls/regions`` as a range and bearing from the sonar,
 ``z = [r, b]``, ``h(x) = [sqrt(dx^2 + dy^2), atan2(dy, dx) - yaw]`` with ``(dx, dy)`` the target's
 offset from the sonar, linearised at the prediction (the extended Kalman filter), with noise
-``R = diag(sigma_range^2, sigma_bearing^2)``. The motion model, its process noise and the Kalman
-prediction are the shared ones (:mod:`~..tracking.motion`, :mod:`~..tracking.noise`,
-:func:`~..tracking.kalman.predict`); the gate is the chi-square gate of
+``R = diag(sigma_range^2, sigma_bearing^2)`` (the filter: :class:`.filters.Ekf`). The motion
+model, its process noise and the Kalman prediction are the shared ones (:mod:`~..tracking.motion`,
+:mod:`~..tracking.noise`, :func:`~..tracking.kalman.predict`); the gate is the chi-square gate of
 :func:`~..tracking.gating.gate_threshold`. Tracks and regions are paired by global nearest
 neighbour (least total squared Mahalanobis distance within the gate,
 :func:`.management.gated_assignment`). Births, confirmation,
@@ -22,9 +22,8 @@ import numpy as np
 
 from ..config import Config, setting
 from ..tracking.gating import gate_threshold
-from ..tracking.kalman import predict as kalman_predict
 from .config import GpfConfig
-from .gaussian import kalman_update, motion_matrices
+from .filters import Ekf, polar_measurement, wrap_angle
 from .management import birth_covariance, gated_assignment, should_end, unexplained, widen
 from .track import GpfTrack, tracks_to_records
 from .tracker import GpfInputError, StepReport, regions_xy
@@ -43,20 +42,6 @@ class EkfConfig(Config):
     gate_probability: float = setting(0.99, 'P_G of the chi-square gate on the innovation', low=0.5, high=0.999999)
 
 
-def polar_measurement(x: np.ndarray, sensor: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """``h(x)`` (range, bearing re the sonar heading) and its Jacobian ``(2, 4)`` at state ``x``."""
-    dx, dy = x[0] - sensor[0], x[1] - sensor[1]
-    r2 = max(dx * dx + dy * dy, 1e-12)
-    r = math.sqrt(r2)
-    h = np.array([r, math.atan2(dy, dx) - sensor[2]])
-    H = np.array([[dx / r, dy / r, 0.0, 0.0], [-dy / r2, dx / r2, 0.0, 0.0]])
-    return h, H
-
-
-def _wrap(a: np.ndarray | float) -> np.ndarray | float:
-    return np.remainder(np.asarray(a) + math.pi, 2 * math.pi) - math.pi
-
-
 class EkfTracker:
     """Multi-target EKF on regions; ``step`` has the GPF tracker's signature without the image."""
 
@@ -67,6 +52,7 @@ class EkfTracker:
         self.ekf = ekf or EkfConfig()
         self.gamma = gate_threshold(self.ekf.gate_probability, 2)
         self.R = np.diag([self.ekf.sigma_range ** 2, math.radians(self.ekf.sigma_bearing_deg) ** 2])
+        self.filter = Ekf(self.R)
         self.tracks: list[GpfTrack] = []
         self.next_id = 1
         self.stamp: float | None = None
@@ -86,9 +72,9 @@ class EkfTracker:
             self.tracks, self.stamp = [], None
         dt = 0.0 if self.stamp is None else float(stamp - self.stamp)
         self.stamp = float(stamp)
-        self._predict(dt)
+        self.filter.predict(self.tracks, dt, self.config.motion.noise, 0, None)
         z = np.column_stack([np.hypot(xy[:, 0] - sensor[0], xy[:, 1] - sensor[1]),
-                             _wrap(np.arctan2(xy[:, 1] - sensor[1], xy[:, 0] - sensor[0]) - sensor[2])])
+                             wrap_angle(np.arctan2(xy[:, 1] - sensor[1], xy[:, 0] - sensor[0]) - sensor[2])])
         used = self._update(z, sensor)
         for tr in self.tracks:
             tr.stamp = float(stamp)
@@ -104,16 +90,6 @@ class EkfTracker:
         self.report = rep
         return tracks_to_records(self.tracks)
 
-    def _predict(self, dt: float) -> None:
-        if dt <= 0.0 or not self.tracks:
-            return
-        F, Q = motion_matrices(dt, self.config.motion.noise)
-        x = np.stack([tr.mean for tr in self.tracks], axis=1)[:, None, :]             # (4, 1, T)
-        P = np.stack([tr.cov for tr in self.tracks], axis=2)[:, :, None, :]           # (4, 4, 1, T)
-        x, P = kalman_predict(x, P, F[None], Q[None])
-        for i, tr in enumerate(self.tracks):
-            tr.mean, tr.cov = x[:, 0, i].copy(), P[:, :, 0, i].copy()
-
     def _update(self, z: np.ndarray, sensor: tuple[float, float, float]) -> np.ndarray:
         """Global-nearest-neighbour pairing and the EKF update; returns which regions were used."""
         n, t = len(z), len(self.tracks)
@@ -123,11 +99,7 @@ class EkfTracker:
         cost = np.full((t, max(n, 1)), np.inf)
         parts = []
         for i, tr in enumerate(self.tracks):
-            h, H = polar_measurement(tr.mean, sensor)
-            S = H @ tr.cov @ H.T + self.R
-            S_inv = np.linalg.inv(S)
-            nu = z - h[None, :]
-            nu[:, 1] = _wrap(nu[:, 1])
+            H, S_inv, nu = self.filter.innovations(tr, z, sensor)
             if n:
                 cost[i, :n] = np.einsum('na,ab,nb->n', nu, S_inv, nu)
             parts.append((H, S_inv, nu))
@@ -140,7 +112,7 @@ class EkfTracker:
                 tr.cov = widen(tr.cov, self.config.lost)
                 continue
             H, _, nu = parts[i]
-            tr.mean, tr.cov = kalman_update(tr.mean, tr.cov, nu[k], H, self.R)
+            self.filter.update(tr, nu[k], H)
             tr.seen, tr.misses = True, 0
             tr.hits += 1
             tr.last_seen = self.stamp

@@ -2,7 +2,8 @@
 
 Per frame at time t (§4.2.3):
 
-1. every track is predicted to t (GPF: eqs. 9-12; SIR: its particles moved by the motion model);
+1. every track is predicted to t by its filter (:mod:`.filters`: the GPF's eqs. 9-12, or the SIR's
+   particles moved by the motion model);
 2. every track is updated on the image (step 2): particles drawn from its prediction, each
    particle's window features compared with the track's template per cue (eq. 13,
    :mod:`.cues`), the cues fused (:mod:`.fusion`: ``fusion.mode`` af, mf or wf; af is WF while
@@ -28,8 +29,9 @@ metres keeps about the same number of pixels (:func:`.cues.window_pixels`) and t
 particle stays bounded however fine the image; the window is capped at :data:`.cues.MAX_WINDOW`
 pixels (with ``cues.pixel`` 0 on a very fine image; reported in :class:`StepReport`).
 
-``method='sir'`` runs the SIR particle filter baseline (:mod:`.sir`) with exactly the same cues,
-fusion, births and management, so the two differ only in the filter. An image without any data
+``method`` chooses the filter (:data:`.filters.FILTERS`): ``gpf``, or ``sir`` for the SIR particle
+filter baseline with exactly the same cues, fusion, births and management, so the two differ only in
+the filter. An image without any data
 (all zero) updates nothing: tracks are predicted and count the frame as a miss. A stamp older
 than the previous one restarts the tracker (a looping recording); ids are never reused.
 """
@@ -45,18 +47,18 @@ from ..fls.features import FeatureConfig
 from ..fls.grid import ImageGrid
 from ..fls.windows import WindowImage
 from ..records import GPF_TRACK_DTYPE
-from . import sir
 from .config import GpfConfig
 from .cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
-from .fusion import MF, WF, fuse_many, normalise_log, second_target
-from .gaussian import condition_velocity, floor_position, kalman_update, predict, sample_gaussian, weighted_moments
+from .filters import FILTERS
+from .fusion import MF, WF, fuse_many, second_target
+from .gaussian import kalman_update
 from .management import (birth_covariance, blend_template, left_coverage, reseed_pairs, should_end, spaced,
                          template_may_update, unexplained, widen)
 from .track import GpfTrack, tracks_to_records
 
 __all__ = ['GpfInputError', 'Frame', 'GpfTracker', 'StepReport', 'regions_xy', 'check_image', 'NEGATIVE_TOLERANCE']
 
-METHODS = ('gpf', 'sir')
+METHODS = tuple(FILTERS)
 
 #: Negative pixels down to this fraction of the image's largest magnitude are round-off of the image
 #: filters (-1.5e-15 next to intensities near 1 on recorded frames; a 32FC1 image rounds at about
@@ -162,6 +164,7 @@ class GpfTracker:
         if rng is None:
             raise ValueError('GpfTracker needs a numpy.random.Generator (rng=np.random.default_rng(seed))')
         self.method = method
+        self.filter = FILTERS[method]()
         self.rng = rng
         self.feature_config = feature_config or FeatureConfig()
         self.configure(config or GpfConfig())
@@ -211,8 +214,7 @@ class GpfTracker:
                 tr.template = None
             self._cues_changed = False
 
-        for tr in self.tracks:
-            self.predict_track(tr, dt)
+        self.filter.predict(self.tracks, dt, self.config.motion.noise, self.config.particles, self.rng)
         t1 = time.perf_counter()
         frame = self._prepare(img, grid)
         rep.empty_image = frame.empty
@@ -273,15 +275,8 @@ class GpfTracker:
         return Frame(grid, wi, self.cues.background(wi, grid, valid), n)
 
     def predict_track(self, tr: GpfTrack, dt: float) -> None:
-        """Move one track ``dt`` seconds on: GPF eqs. (9)-(12), or the SIR particles."""
-        if dt <= 0.0:
-            return
-        q, k = self.config.motion.noise, self.config.particles
-        if self.method == 'sir':
-            tr.particles = sir.propagate(tr.particles, dt, q, self.rng)
-            tr.mean, tr.cov = weighted_moments(tr.particles, tr.weights)
-        else:
-            tr.mean, tr.cov = predict(tr.mean, tr.cov, dt, q, k, self.rng)
+        """Move one track ``dt`` seconds on (its filter's prediction)."""
+        self.filter.predict([tr], dt, self.config.motion.noise, self.config.particles, self.rng)
 
     def update_track(self, tr: GpfTrack, frame: Frame, others: np.ndarray | None = None) -> None:
         """Update one (predicted) track on a prepared frame (step 2 of §4.2.3); a frame without data
@@ -306,12 +301,7 @@ class GpfTracker:
             for j, tr in enumerate(fresh):
                 tr.template = values[:, j]
         k, n = self.config.particles, len(tracks)
-        if self.method == 'sir':
-            particles = [tr.particles for tr in tracks]
-        else:
-            # One draw for all tracks: the numbers each track's sample_gaussian would draw in turn.
-            z = self.rng.standard_normal((n, k, tracks[0].mean.size))
-            particles = [sample_gaussian(tr.mean, tr.cov, k, z=z[i]) for i, tr in enumerate(tracks)]
+        particles = self.filter.particles(tracks, k, self.rng)
         xy = np.concatenate([p[:, :2] for p in particles])
         values = self.cues.values(wi, grid, xy, frame.window, np.repeat(np.arange(n), k))
         values = values.reshape(self.cues.m, n, k).transpose(1, 0, 2)                    # (n, m, K)
@@ -325,16 +315,8 @@ class GpfTracker:
         floor = max(res * res / 12.0, self.config.min_std ** 2)
         posteriors = []
         for i, tr in enumerate(tracks):
-            p, fused = particles[i], fusions[i]
-            if self.method == 'sir':
-                w = normalise_log(np.log(tr.weights) + fused.log_likelihood)
-            else:
-                w = normalise_log(fused.log_likelihood)
-            mean, cov = weighted_moments(p, w)
-            cov = floor_position(cov, floor)
-            if self.method != 'sir':            # the SIR keeps its particles' own velocities
-                mean, cov = condition_velocity(tr.mean, tr.cov, mean[:2], cov[:2, :2])
-            posteriors.append((fused, w, mean, cov))
+            w, mean, cov = self.filter.posterior(tr, particles[i], fusions[i].log_likelihood, floor)
+            posteriors.append((fusions[i], w, mean, cov))
         observed_all = self.cues.values(wi, grid, np.array([post[2][:2] for post in posteriors]), frame.window,
                                         np.arange(n))
         lost = self.config.lost
@@ -353,16 +335,13 @@ class GpfTracker:
             tr.hits += 1
             tr.last_seen = tr.stamp
             tr.observed = observed
-            if self.method == 'sir':
-                tr.particles, tr.weights = sir.resample(particles[i], w, self.rng)
-                tr.particles = sir.roughen(tr.particles, floor, self.rng)
+            self.filter.accepted(tr, particles[i], w, floor, self.rng)
 
     def _miss(self, tr: GpfTrack) -> None:
         tr.seen = False
         tr.misses += 1
         tr.cov = widen(tr.cov, self.config.lost)
-        if self.method == 'sir':
-            tr.particles = sir.spread(tr.particles, tr.weights, self.config.lost.inflation, tr.cov)
+        self.filter.missed(tr, self.config.lost.inflation)
 
     # -- management -----------------------------------------------------------------------------
     def _templates(self, wi: WindowImage | None) -> None:
@@ -433,9 +412,7 @@ class GpfTracker:
             tr.mean, tr.cov = kalman_update(tr.mean, tr.cov, xy[r] - tr.mean[:2], H, R)
             tr.seen, tr.misses, tr.hits, tr.last_seen = True, 0, tr.hits + 1, tr.stamp
             tr.match, tr.observed = 0.0, None
-            if self.method == 'sir':
-                tr.particles = sample_gaussian(tr.mean, tr.cov, self.config.particles, self.rng)
-                tr.weights = np.full(self.config.particles, 1.0 / self.config.particles)
+            self.filter.restart(tr, self.config.particles, self.rng)
         return len(pairs)
 
     def _births(self, xy: np.ndarray, covs: np.ndarray, frame: Frame) -> int:
@@ -456,9 +433,7 @@ class GpfTracker:
             tr = GpfTrack(track_id=self.next_id, mean=mean, cov=covs[i], template=templates[:, j],
                           born=self.stamp, stamp=self.stamp, last_seen=self.stamp)
             self.next_id += 1
-            if self.method == 'sir':
-                tr.particles = sample_gaussian(mean, covs[i], self.config.particles, self.rng)
-                tr.weights = np.full(self.config.particles, 1.0 / self.config.particles)
+            self.filter.restart(tr, self.config.particles, self.rng)
             tr.confirmed = tr.hits >= c.confirm_hits
             self.tracks.append(tr)
         return int(free.size)
