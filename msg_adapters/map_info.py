@@ -20,10 +20,11 @@ from sonar_tracking.core.sector import MAX_CELLS
 
 from .errors import AdapterError
 from .image import image_to_array
+from .pointcloud import cloud_to_array
 from .stamps import ns_to_stamp
 from .types import MessageTypes, rclpy_types
 
-__all__ = ['grid_to_map_info', 'map_info_to_grid', 'fls_image', 'MIN_RESOLUTION', 'MAX_RESOLUTION']
+__all__ = ['grid_to_map_info', 'map_info_to_grid', 'fls_image', 'fls_frame', 'MIN_RESOLUTION', 'MAX_RESOLUTION']
 
 #: Physical bounds of an FLS image grid (a millimetre to 100 m pixels; at most MAX_CELLS pixels).
 MIN_RESOLUTION, MAX_RESOLUTION = 1e-3, 100.0
@@ -83,3 +84,15 @@ def fls_image(msg: Any, grid_shape: tuple[int, int]) -> np.ndarray:
     if bad.any():
         raise AdapterError(f'fls/image has {int(bad.sum())} NaN or infinite pixels; no-data pixels must be 0')
     return image
+
+
+def fls_frame(image_msg: Any, info_msg: Any, regions_msg: Any):
+    """One FLS frame's three messages (``fls/image``, ``fls/image_info``, ``fls/regions``) as
+    ``(grid, image, regions)``, or AdapterError saying which is unusable (regions need ``x, y``)."""
+    grid = map_info_to_grid(info_msg)
+    image = fls_image(image_msg, grid.shape)
+    regions = cloud_to_array(regions_msg)
+    names = set(regions.dtype.names or ())
+    if not {'x', 'y'} <= names:
+        raise AdapterError(f'/fls/regions need fields x and y; the cloud has {sorted(names)}')
+    return grid, image, regions

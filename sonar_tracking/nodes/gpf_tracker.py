@@ -40,7 +40,7 @@ from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, PointCloud2
 
 import msg_adapters as ma
-from msg_adapters.map_info import fls_image, map_info_to_grid
+from msg_adapters.map_info import fls_frame
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
@@ -74,8 +74,7 @@ class GpfTrackerNode(SonarNode):
                                   feature_config=self.config.features)
         self.frames = ma.StampPairer(self.PARTS, self.config.max_pending)
         self.origin_ns: int | None = None
-        self.resets = 0
-        self.processed = 0
+        self.resets = self.processed = 0
         inputs = self.input_qos(50)   # a burst of frames (a replay) waits instead of being overwritten
         self.subscribe(Image, 'fls/image', lambda m: self._on_part('image', m), inputs)
         self.subscribe(MapMetaData, 'fls/image_info', lambda m: self._on_part('info', m), inputs)
@@ -83,11 +82,7 @@ class GpfTrackerNode(SonarNode):
         self.pose = PoseSource(self, lambda: self.config, self.input_qos(50),
                                lambda text: self.say('error', text, 'bad_odometry'))
         self.out = TrackOutput(self, 'gpf/tracks', 'gpf')
-        c = self.config
-        self.get_logger().info(
-            f'GPF with K = {c.particles} particles, cues {list(c.cues.numbers)} in {c.cues.window:g} m windows, '
-            f'fusion {c.fusion.mode} (T_i {list(c.fusion.thresholds)}), tracks end {c.lost.max_time:g} s after '
-            'losing their target')
+        self.get_logger().info(self.config.describe())
 
     def on_change(self, old: GpfNodeConfig, new: GpfNodeConfig) -> None:
         self.tracker.configure(new, new.features)
@@ -116,12 +111,7 @@ class GpfTrackerNode(SonarNode):
         started = time.perf_counter()
         where = f'frame at {stamp / 1e9:.3f} s'
         try:
-            grid = map_info_to_grid(frame['info'])
-            image = fls_image(frame['image'], grid.shape)
-            regions = ma.cloud_to_array(frame['regions'])
-            names = set(regions.dtype.names or ())
-            if not {'x', 'y'} <= names:
-                raise ValueError(f'/fls/regions need fields x and y; the cloud has {sorted(names)}')
+            grid, image, regions = fls_frame(frame['image'], frame['info'], frame['regions'])
         except (ma.AdapterError, ValueError) as exc:
             self.say('error', f'{where} dropped: {exc}', 'malformed')
             return
@@ -140,24 +130,14 @@ class GpfTrackerNode(SonarNode):
             self.say('error', f'{where} dropped: {exc}', 'malformed')
             return
         rep = self.tracker.report
-        if rep.window_capped:
-            self.say('warning', f'cues.window is more than 41 pixels of {rep.cue_pixel:g} m: windows cut to 41; set '
-                     'cues.pixel > 0')
-        if rep.bad_regions:
-            self.say('warning', f'{where}: {rep.bad_regions} regions without a finite position ignored')
+        for text in rep.warnings():
+            self.say('warning', f'{where}: {text}')
         self.time.accept(stamp)
         self.processed += 1
         self.out.publish(tracks, stamp, frame_id, self.config)
         self.diag.done(started)
-        self.diag.values = {
-            'frames': str(self.processed), 'regions': str(rep.regions), 'tracks': str(rep.tracks),
-            'confirmed': str(rep.confirmed), 'born': str(rep.born), 'ended': str(rep.ended),
-            'seen': str(rep.seen), 'missed': str(rep.missed), 'refound': str(rep.reseeded),
-            'fusion_mf': str(rep.mf), 'fusion_wf': str(rep.wf), 'empty_image': str(rep.empty_image),
-            'resets_total': str(self.resets), 'odometry': 'yes' if self.pose.has_odometry else 'no (sonar_pose)',
-            'outside': str(rep.outside), 'ended_outside': str(rep.ended_outside),
-            'window_px': str(rep.window_pixels), 'cue_pixel_m': f'{rep.cue_pixel:g}',
-        } | {f'{k}_ms': f'{1e3 * v:.2f}' for k, v in rep.seconds.items()}
+        self.diag.values = {'frames': str(self.processed), 'resets_total': str(self.resets),
+                            'odometry': 'yes' if self.pose.has_odometry else 'no (sonar_pose)'} | rep.summary()
 
 
 def main(args: list[str] | None = None) -> int:

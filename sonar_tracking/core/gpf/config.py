@@ -206,5 +206,11 @@ class GpfConfig(Config):
     lost: LostConfig = dataclasses.field(default_factory=LostConfig)
     template: TemplateConfig = dataclasses.field(default_factory=TemplateConfig)
 
+    def describe(self) -> str:
+        """One line saying how the tracker is set up (for a log)."""
+        return (f'GPF with K = {self.particles} particles, cues {list(self.cues.numbers)} in {self.cues.window:g} m '
+                f'windows, fusion {self.fusion.mode} (T_i {list(self.fusion.thresholds)}), tracks end '
+                f'{self.lost.max_time:g} s after losing their target')
+
     def validate(self) -> None:
         self.fusion.per_cue(len(self.cues.features))

@@ -110,6 +110,25 @@ class StepReport:
     reset: str = ''
     seconds: dict[str, float] = field(default_factory=dict)
 
+    def warnings(self) -> list[str]:
+        """What about the frame deserves a warning (the frame was still used)."""
+        out = []
+        if self.window_capped:
+            out.append(f'cues.window is more than {MAX_WINDOW} pixels of {self.cue_pixel:g} m: windows cut to '
+                       f'{MAX_WINDOW}; set cues.pixel > 0')
+        if self.bad_regions:
+            out.append(f'{self.bad_regions} regions without a finite position ignored')
+        return out
+
+    def summary(self) -> dict[str, str]:
+        """The frame's figures as text (a diagnostics report)."""
+        return {'regions': str(self.regions), 'tracks': str(self.tracks), 'confirmed': str(self.confirmed),
+                'born': str(self.born), 'ended': str(self.ended), 'seen': str(self.seen), 'missed': str(self.missed),
+                'refound': str(self.reseeded), 'fusion_mf': str(self.mf), 'fusion_wf': str(self.wf),
+                'empty_image': str(self.empty_image), 'outside': str(self.outside),
+                'ended_outside': str(self.ended_outside), 'window_px': str(self.window_pixels),
+                'cue_pixel_m': f'{self.cue_pixel:g}'} | {f'{k}_ms': f'{1e3 * v:.2f}' for k, v in self.seconds.items()}
+
 
 def check_image(image: np.ndarray, grid: ImageGrid) -> np.ndarray:
     """The image as an array of numbers with the grid's shape, or GpfInputError saying what is wrong
