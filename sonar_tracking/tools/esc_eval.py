@@ -21,7 +21,7 @@ from sonar_tracking.core.eval.esc_study import PAPER_DESIRED_DENSITY, StudyConfi
 from sonar_tracking.core.eval.montecarlo import ClusterUnavailable, Progress, add_pool_arguments, pool_from_args, \
     run_monte_carlo
 
-from ._output import write_json, write_plot
+from ._output import table_command, write_json, write_plot
 
 __all__ = ['add_scenario_arguments', 'main_scenario', 'add_desired_density_arguments', 'main_desired_density',
            'plot_study']
@@ -213,17 +213,5 @@ def main_table(args) -> int:
     if args.runs < 2 or args.jobs < 1 or (args.scans and args.scans < 4) or not 0 < args.cft_target < 1:
         print('error: need --runs >= 2, --jobs >= 1, --scans 0 or >= 4 and 0 < --cft-target < 1', file=sys.stderr)
         return 2
-    t0 = time.monotonic()
-    try:
-        with pool_from_args(args) as pool:
-            result = run_table(args.runs, args.seed, pool, args.scans or None, args.cft_target)
-            where = pool.describe()
-    except ClusterUnavailable as exc:
-        print(f'error: {exc}', file=sys.stderr)
-        return 2
-    result['wall_s'] = time.monotonic() - t0
-    print(f'esc-table: {time.monotonic() - t0:.0f} s on {where}')
-    print(format_table(result))
-    if args.json:
-        write_json(args.json, result)
-    return 0
+    return table_command('esc-table', args, lambda pool: run_table(args.runs, args.seed, pool, args.scans or None,
+                                                                    args.cft_target), format_table)

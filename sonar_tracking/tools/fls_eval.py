@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from ._output import write_json, write_plot
+from ._output import table_command, write_json, write_plot
 
 __all__ = ['add_arguments', 'main_args', 'run_study', 'study_for', 'plot', 'add_table_arguments', 'main_table']
 
@@ -232,7 +232,6 @@ def main_table(args: Any) -> int:
     """Run the FLS crossing comparison; print the README table."""
     from sonar_tracking.core.eval.fls_study import parse_methods
     from sonar_tracking.core.eval.fls_table import format_table, run_table
-    from sonar_tracking.core.eval.montecarlo import ClusterUnavailable, pool_from_args
     try:
         methods = parse_methods(args.methods)
         situations = [int(n) for n in args.situations.split(',') if n.strip()]
@@ -242,17 +241,5 @@ def main_table(args: Any) -> int:
     if args.runs < 2 or args.jobs < 1 or not situations or any(not 1 <= n <= 14 for n in situations):
         print('error: need --runs >= 2, --jobs >= 1 and situations among 1-14', file=sys.stderr)
         return 2
-    t0 = time.monotonic()
-    try:
-        with pool_from_args(args) as pool:
-            result = run_table(args.runs, args.seed, pool, situations, methods)
-            where = pool.describe()
-    except ClusterUnavailable as exc:
-        print(f'error: {exc}', file=sys.stderr)
-        return 2
-    result['wall_s'] = time.monotonic() - t0
-    print(f'fls-table: {result["wall_s"]:.0f} s on {where}')
-    print(format_table(result))
-    if args.json:
-        write_json(args.json, result)
-    return 0
+    return table_command('fls-table', args, lambda pool: run_table(args.runs, args.seed, pool, situations, methods),
+                         format_table)
