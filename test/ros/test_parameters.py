@@ -36,9 +36,11 @@ def test_every_parameter_keeps_its_type_whatever_is_set(ros, inproc, path):
         declared = {d.name: d.type for d in ros.call(descc, DescribeParameters.Request(names=names)).descriptors}
         assert all(t != ParameterType.PARAMETER_NOT_SET for t in declared.values())
         for trial in TRIALS:
-            msgs = [Parameter(n, value=trial).to_parameter_msg() for n in names]
-            for m in msgs:           # one request per parameter, as `ros2 param set` sends them
-                ros.call(setc, SetParameters.Request(parameters=[m]))
+            # One request for all: the service sets each parameter alone (atomically), exactly as it
+            # does for the one-parameter request of `ros2 param set`.
+            reply = ros.call(setc, SetParameters.Request(
+                parameters=[Parameter(n, value=trial).to_parameter_msg() for n in names]))
+            assert len(reply.results) == len(names)
             got = ros.call(getc, GetParameters.Request(names=names)).values
             types = dict(zip(names, (v.type for v in got)))
             changed = {n: (declared[n], types[n]) for n in names if types[n] != declared[n]}

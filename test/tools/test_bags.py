@@ -273,6 +273,7 @@ def readers_agree(bag, n):
     return direct
 
 
+@pytest.mark.slow
 def test_kill_9_at_random_moments_loses_at_most_the_last_second(tmp_path, ros):
     """20 seeded trials (MCAP and sqlite3 alternately, five recorders at a time): each recorder is killed
     once the bag on disk holds N messages and K more were published (N, K seeded); every bag replays,

@@ -329,6 +329,7 @@ nodes:
 
 
 @pytest.mark.ros
+@pytest.mark.slow
 def test_the_browser_shows_a_running_stack(tmp_path):
     if shutil.which('chromium') is None:
         pytest.skip('Debian\'s chromium is not installed (`make view-deps` installs it)')
