@@ -61,7 +61,15 @@ class StampPairer:
         """The parts not in ``present``."""
         return tuple(p for p in self.parts if p not in present)
 
-    def clear(self) -> None:
-        """Forget everything pending (time went back: a new recording)."""
-        self._pending.clear()
+    def restart(self, last_ns: int) -> None:
+        """Time went back: a new recording starts before ``last_ns``, the newest stamp taken of the old one.
+
+        The old recording's pending stamps (after ``last_ns``; older ones were given up when it
+        completed) can never complete and are given up; the stamps pushed out by ``max_pending`` are
+        forgotten, since the new recording may use the same stamps (a looping bag). Parts of the new
+        recording that arrived before the stamp that showed the jump are kept: two topics are not
+        delivered in step, so some of them often do.
+        """
+        for old in [s for s in self._pending if s > last_ns]:
+            self._dropped.append((old, tuple(sorted(self._pending.pop(old)))))
         self._evicted.clear()

@@ -87,7 +87,8 @@ class GpfTrackerNode(SonarNode):
     def on_change(self, old: GpfNodeConfig, new: GpfNodeConfig) -> None:
         self.tracker.configure(new, new.features)
 
-    def _restart(self) -> None:
+    def _restart(self, last_ns: int) -> None:
+        self.frames.restart(last_ns)
         self.tracker.reset()
         self.pose.clear()
         self.origin_ns = None

@@ -75,7 +75,7 @@ class ImmIpdaTrackerNode(SonarNode):
         if self.tracker.configure(new):
             self.get_logger().info(f'modes changed to {new.imm.models}: tracker restarted')
 
-    def _restart(self) -> None:
+    def _restart(self, last_ns: int) -> None:
         self.tracker.reset()
         self.origin_ns = None
         self.resets += 1

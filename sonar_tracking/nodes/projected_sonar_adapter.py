@@ -86,7 +86,7 @@ class ProjectedSonarAdapter(SonarNode):
         self.pub_info.publish(scan)
         self.sectors += 1
 
-    def _reset(self) -> None:
+    def _reset(self, last_ns: int) -> None:
         self.last_ns = 0
 
 

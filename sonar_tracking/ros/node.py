@@ -66,10 +66,11 @@ class SonarNode(Node):
         """The reader profile named by the ``input_qos`` parameter."""
         return input_profile(self.config.input_qos, depth)
 
-    def admit(self, stamp_ns: int, what: str, on_reset: Callable[[], None], newest: int | None = None) -> bool:
+    def admit(self, stamp_ns: int, what: str, on_reset: Callable[[int], None], newest: int | None = None) -> bool:
         """Whether input ``what`` at ``stamp_ns`` is processed: a late stamp is dropped with a warning,
-        a jump back restarts the node (``on_reset()``) and is processed. ``newest``: a stamp accepted
-        but not yet processed (input waiting for its pose), compared instead of the last processed."""
+        a jump back restarts the node (``on_reset(last_ns)``, with the newest stamp of the old recording)
+        and is processed. ``newest``: a stamp accepted but not yet processed (input waiting for its
+        pose), compared instead of the last processed."""
         guard = self.time if newest is None else TimeGuard(newest)
         verdict, back = guard.check(stamp_ns, self.config.time_jump_reset)
         if verdict == LATE:
@@ -79,8 +80,9 @@ class SonarNode(Node):
         if verdict == RESET:
             self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): {self.get_name()} '
                                       'starts again')
+            last = guard.last_ns
             self.time.reset()
-            on_reset()
+            on_reset(last)
         return True
 
     def subscribe(self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos) -> Any:

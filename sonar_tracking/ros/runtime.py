@@ -62,6 +62,11 @@ def run_node(factory: Callable[[], 'rclpy.node.Node'], args: list[str] | None = 
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except Exception:
+        # Ctrl-C while the node or the executor was still being made: rclpy's signal handler shut the
+        # context down under it, and the call that failed on it is a stop, not a failure.
+        if rclpy.ok():
+            raise
     finally:
         if node is not None:
             node.destroy_node()

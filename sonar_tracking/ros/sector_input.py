@@ -93,9 +93,9 @@ class SectorInput:
             return
         self._waiting.append((stamp, amplitudes, geometry, pair.image.header.frame_id, time.monotonic()))
 
-    def _restart(self) -> None:
+    def _restart(self, last_ns: int) -> None:
         self._waiting.clear()
-        self.pairer.clear()
+        self.pairer.restart(last_ns)
         self.pose.clear()
         self.on_reset()
 

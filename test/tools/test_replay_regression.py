@@ -104,7 +104,11 @@ def node_tracks(ros, launch, bag: Path, repeat: int = 1) -> list[tuple[int, np.n
                                  '--wait-for', '/sonar/sector', '/sonar/sector_info'],
                                 capture_output=True, text=True, timeout=120)
         assert replay.returncode == 0, replay.stderr
-        ros.wait(lambda: len(got) >= SCANS * repeat, 30.0, f'{SCANS * repeat} /tracks messages')
+        try:
+            ros.wait(lambda: len(got) >= SCANS * repeat, 30.0, f'{SCANS * repeat} /tracks messages')
+        except AssertionError as e:     # say what arrived and what the nodes logged
+            logs = '\n'.join(launch.stop(p) for p in nodes)
+            raise AssertionError(f'{e}: {len(got)} arrived; replay: {replay.stderr}\nnodes:\n{logs}') from None
         for proc in nodes:
             assert proc.poll() is None, proc.stderr.read()
     finally:
