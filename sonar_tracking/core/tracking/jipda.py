@@ -35,7 +35,9 @@ for K tracks): ``F_j(A)`` sums the assignments of measurements ``< j`` to exactl
 unassigned. Then ``W_{-t}(not i) = sum_{A not containing t} F_i(A) B_{i+1}(A + t)`` and
 ``W_{-t}(all) = sum_{A not containing t} F_J(A) B_J(A + t)``: sums of positive terms, no
 differences. Each track's weights are scaled by one constant first (``r`` does not change), so
-the products stay in range. Work: O(J K 2^K) per cluster of J shared measurements.
+the products stay in range. Work: O(J K 2^K) per cluster of J shared measurements; clusters of
+one size are computed together, and two-track clusters in closed form, ``r_{t,i} = 1 - w_{s,i} / W_s``
+with ``W_s = u'_s + sum_j w_{s,j}`` over the shared measurements.
 
 Above ``max_cluster`` tracks, ``r_{t,i} ~ prod_{s != t} (1 - q_{s,i})``, with ``q_{s,i}`` track s's
 independent IPDA probability that i is its detection (eq. 34 with eq. 40's normalisation): the
@@ -57,8 +59,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 
 from .errors import TrackingInputError
 from .gating import Innovations
@@ -85,13 +85,22 @@ def pair_likelihoods(mu_pred: np.ndarray, track: np.ndarray, innov: Innovations,
 
 
 def track_clusters(track: np.ndarray, meas: np.ndarray, n_tracks: int, n_meas: int) -> np.ndarray:
-    """``(T,)`` cluster label of each track: connected components of tracks linked by a shared measurement."""
+    """``(T,)`` cluster label of each track: connected components of tracks linked by a shared measurement.
+
+    The label is the smallest track index of the component, found by propagating minima between
+    tracks and measurements until nothing changes (as many rounds as the longest chain of tracks,
+    each a few numpy calls over the pairs: clusters are small)."""
+    labels = np.arange(n_tracks)
     if len(track) == 0:
-        return np.arange(n_tracks)
-    n = n_tracks + n_meas
-    graph = coo_matrix((np.ones(len(track), dtype=np.int8), (track, n_tracks + meas)), shape=(n, n))
-    _, labels = connected_components(graph, directed=False)
-    return labels[:n_tracks]
+        return labels
+    while True:
+        m_label = np.full(n_meas, n_tracks)
+        np.minimum.at(m_label, meas, labels[track])
+        new = labels.copy()
+        np.minimum.at(new, track, m_label[meas])
+        if np.array_equal(new, labels):
+            return labels
+        labels = new
 
 
 @lru_cache(maxsize=16)
@@ -103,32 +112,51 @@ def _mask_tables(k: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def exact_factors(weight: np.ndarray, unassigned: np.ndarray) -> np.ndarray:
-    """Exact ``r (K, J)`` of one cluster: ``weight (K, J)`` = ``psi_t L_{t,j}`` on its shared measurements
-    (0 where t does not validate j), ``unassigned (K,)`` = ``u'_t`` (module docstring)."""
-    k, n_j = weight.shape
-    scale = np.maximum(unassigned, weight.max(axis=1, initial=0.0))
+    """Exact ``r (..., K, J)`` of clusters of K tracks: ``weight (..., K, J)`` = ``psi_t L_{t,j}`` on their
+    shared measurements (0 where t does not validate j, or for padding), ``unassigned (..., K)`` =
+    ``u'_t`` (module docstring). Leading axes are independent clusters, computed together."""
+    weight, unassigned = np.asarray(weight, dtype=float), np.asarray(unassigned, dtype=float)
+    single = weight.ndim == 2
+    if single:
+        weight, unassigned = weight[None], unassigned[None]
+    n_c, k, n_j = weight.shape
+    if k == 2:
+        r = _two_track_factors(weight, unassigned)
+        return r[0] if single else r
+    scale = np.maximum(unassigned, weight.max(axis=2, initial=0.0))
     scale = np.where(scale > 0.0, 1.0 / np.where(scale > 0.0, scale, 1.0), 1.0)
-    w, u = weight * scale[:, None], unassigned * scale
+    w, u = weight * scale[:, :, None], unassigned * scale
     bit, flip = _mask_tables(k)
     free = ~bit
-    F = np.zeros((n_j + 1, 1 << k))
-    F[0, 0] = 1.0
+    F = np.zeros((n_j + 1, n_c, 1 << k))
+    F[0, :, 0] = 1.0
     for j in range(n_j):
         f = F[j]
-        F[j + 1] = f + np.einsum('tm,tm->m', w[:, j, None] * bit, f[flip])
-    B = np.empty((n_j + 1, 1 << k))
-    B[n_j] = np.prod(np.where(bit, 1.0, u[:, None]), axis=0)            # u' of the tracks left unassigned
+        F[j + 1] = f + np.einsum('ctm,ctm->cm', w[:, :, j, None] * bit, f[:, flip])
+    B = np.empty((n_j + 1, n_c, 1 << k))
+    B[n_j] = np.prod(np.where(bit, 1.0, u[:, :, None]), axis=1)         # u' of the tracks left unassigned
     for j in range(n_j - 1, -1, -1):
         b = B[j + 1]
-        B[j] = b + np.einsum('tm,tm->m', w[:, j, None] * free, b[flip])
-    r = np.ones((k, n_j))
+        B[j] = b + np.einsum('ctm,ctm->cm', w[:, :, j, None] * free, b[:, flip])
+    r = np.ones((n_c, k, n_j))
     for t in range(k):
         sel = free[t]
-        total = F[n_j, sel] @ B[n_j, flip[t, sel]]                       # W_{-t}(all)
-        g = np.einsum('jm,jm->j', F[:n_j, sel], B[1:, flip[t, sel]])   # W_{-t}(not j)
-        if total > 0.0:
-            r[t] = g / total
-    return np.minimum(r, 1.0)
+        total = np.einsum('cm,cm->c', F[n_j][:, sel], B[n_j][:, flip[t, sel]])       # W_{-t}(all)
+        g = np.einsum('jcm,jcm->cj', F[:n_j][:, :, sel], B[1:][:, :, flip[t, sel]])  # W_{-t}(not j)
+        ok = total > 0.0
+        r[:, t] = np.where(ok[:, None], g / np.where(ok, total, 1.0)[:, None], 1.0)
+    r = np.minimum(r, 1.0)
+    return r[0] if single else r
+
+
+def _two_track_factors(weight: np.ndarray, unassigned: np.ndarray) -> np.ndarray:
+    """:func:`exact_factors` of two-track clusters in closed form: ``W_{-t}`` is the other track's
+    ``u'_s + sum_j w_{s,j}``, so ``r_{t,i} = 1 - w_{s,i} / W_s`` (the error of the difference is
+    rounding relative to 1)."""
+    total = unassigned + weight.sum(axis=2)                           # (C, 2)
+    other, w_other = total[:, ::-1, None], weight[:, ::-1]
+    ok = other > 0.0
+    return np.where(ok, np.clip((other - w_other) / np.where(ok, other, 1.0), 0.0, 1.0), 1.0)
 
 
 def association_factors(track: np.ndarray, meas: np.ndarray, weight: np.ndarray, unassigned: np.ndarray,
@@ -166,18 +194,36 @@ def association_factors(track: np.ndarray, meas: np.ndarray, weight: np.ndarray,
         r[sel] = _lm_product(meas[sel], np.clip(1.0 - q[sel], 0.0, 1.0), n_meas)
     exact_pairs = np.flatnonzero(shared & (size_of_pair <= max_cluster))
     if len(exact_pairs):
-        cl = labels[track[exact_pairs]]
-        order = np.argsort(cl, kind='stable')
-        exact_pairs, cl = exact_pairs[order], cl[order]
-        starts = np.flatnonzero(np.concatenate(([True], cl[1:] != cl[:-1], [True])))
-        for a, b in zip(starts[:-1], starts[1:]):
-            idx = exact_pairs[a:b]
-            ts, t_local = np.unique(track[idx], return_inverse=True)
-            ms, m_local = np.unique(meas[idx], return_inverse=True)
-            w = np.zeros((len(ts), len(ms)))
-            w[t_local, m_local] = weight[idx]
-            r[idx] = exact_factors(w, u_prime[ts])[t_local, m_local]
+        r[exact_pairs] = _exact_by_size(track[exact_pairs], meas[exact_pairs], weight[exact_pairs], labels,
+                                        sizes, u_prime, n_meas)
     return AssociationFactors(r=r, clusters=len(multi), largest=int(sizes.max()), approximated=int(big.sum()))
+
+
+def _local_index(cluster: np.ndarray, item: np.ndarray, n_items: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index of each pair's ``item`` among the distinct items of its cluster, and those items' count per pair."""
+    key = cluster.astype(np.int64) * n_items + item
+    uniq, inv = np.unique(key, return_inverse=True)
+    first = np.searchsorted(uniq, (uniq // n_items) * n_items)       # first distinct item of each cluster
+    last = np.searchsorted(uniq, (uniq // n_items + 1) * n_items)
+    return (np.arange(len(uniq)) - first)[inv], (last - first)[inv]
+
+
+def _exact_by_size(track, meas, weight, labels, sizes, u_prime, n_meas) -> np.ndarray:
+    """Exact ``r`` of the shared pairs of clusters within the limit, the clusters of one size together."""
+    cl = labels[track]
+    t_local, _ = _local_index(cl, track, len(labels))
+    m_local, m_count = _local_index(cl, meas, n_meas)
+    k_of = sizes[cl]
+    out = np.ones(len(track))
+    for k in np.unique(k_of):
+        sel = np.flatnonzero(k_of == k)
+        ids, c_local = np.unique(cl[sel], return_inverse=True)
+        w = np.zeros((len(ids), k, int(m_count[sel].max())))
+        w[c_local, t_local[sel], m_local[sel]] = weight[sel]
+        u = np.zeros((len(ids), k))
+        u[c_local, t_local[sel]] = u_prime[track[sel]]
+        out[sel] = exact_factors(w, u)[c_local, t_local[sel], m_local[sel]]
+    return out
 
 
 def _lm_product(meas: np.ndarray, keep: np.ndarray, n_meas: int) -> np.ndarray:

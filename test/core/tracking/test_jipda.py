@@ -73,6 +73,26 @@ def test_exact_factors_give_the_joint_event_marginals(seed):
     np.testing.assert_allclose(beta, beta_bf, rtol=1e-12, atol=1e-14)
 
 
+@pytest.mark.parametrize('n_meas', [1, 3])
+def test_two_track_closed_form_equals_joint_events(n_meas):
+    rng = np.random.default_rng(n_meas)
+    psi, L = random_cluster(rng, 2, n_meas, density=1.0)
+    r, f = factors_dense(psi, L, PD * PG, 8)
+    assert f.largest == 2
+    exist, beta = ipda_weights(psi, L, r, PD * PG)
+    exist_bf, beta_bf = brute_marginals(psi, L, PD * PG)
+    np.testing.assert_allclose(exist, exist_bf, rtol=1e-12)
+    np.testing.assert_allclose(beta, beta_bf, rtol=1e-12)
+
+
+def test_clusters_of_one_size_batched_equal_one_by_one():
+    rng = np.random.default_rng(9)
+    w, u = rng.exponential(1.0, (5, 3, 4)) * (rng.random((5, 3, 4)) < 0.7), rng.uniform(0.1, 1.0, (5, 3))
+    batched = exact_factors(w, u)
+    for c in range(5):
+        np.testing.assert_allclose(batched[c], exact_factors(w[c], u[c]), rtol=1e-14)
+
+
 def test_exact_factors_are_scale_free_and_handle_extreme_weights():
     rng = np.random.default_rng(3)
     w, u = rng.exponential(1.0, (4, 5)), rng.uniform(0.1, 1.0, 4)
