@@ -17,6 +17,8 @@ def add_arguments(parser) -> None:
     parser.add_argument('--seed', type=int, default=1)
     parser.add_argument('--scans', type=int, default=0, help='scans per run, 0 = the study\'s (100)')
     parser.add_argument('--geometry', choices=('crossing', 'parallel', 'both'), default='both')
+    parser.add_argument('--unresolved', action='store_true',
+                        help='two targets detected within one resolution cell give one merged detection')
     add_pool_arguments(parser)
     parser.add_argument('--json', type=Path, default=None, help='write the results (and every run\'s figures) here')
 
@@ -29,4 +31,5 @@ def main_args(args) -> int:
         return 2
     geometries = GEOMETRIES if args.geometry == 'both' else (args.geometry,)
     return table_command('jipda', args, lambda pool: run_study(args.runs, args.seed, pool, args.scans or None,
-                                                               geometries), format_table)
+                                                               geometries, unresolved=args.unresolved),
+                         format_table)

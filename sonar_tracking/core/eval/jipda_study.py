@@ -8,7 +8,9 @@ Gaussian noise, converted to x, y with the covariance of eq. (10)
 (:func:`~sonar_tracking.core.detection.convert_measurements`). Clutter is Poisson with density
 ``rho`` per m^2, uniform over the window, each clutter detection with the covariance of its own
 range and bearing. Two targets closer than a resolution cell are still two detections (no
-merged, unresolved detections): the simulation tests association, not resolution.
+merged, unresolved detections): the simulation tests association, not resolution. With
+``unresolved``, two targets both detected within one cell of each other give one detection at their
+mean position instead (a crude model of a sonar that cannot resolve them; neither tracker models it).
 
 Geometries (random per run):
 
@@ -82,6 +84,7 @@ class JipdaStudy:
     parallel_cells: tuple[float, float] = (2.0, 4.0)
     gospa_c: float = 20.0                    # [m]
     max_cluster: int = 8
+    unresolved: bool = False                 # targets within a cell give one merged detection
 
     def __post_init__(self) -> None:
         if self.geometry not in GEOMETRIES:
@@ -131,6 +134,8 @@ def simulate(study: JipdaStudy, rng: np.random.Generator) -> tuple[np.ndarray, l
     scans = []
     for k in range(study.scans):
         seen = truth[k, rng.random(2) < study.p_detect, :2]
+        if study.unresolved and len(seen) == 2 and np.hypot(*(seen[0] - seen[1])) < study.cell:
+            seen = seen.mean(axis=0, keepdims=True)
         r, b = _polar(study, seen)
         r, b = r + rng.normal(0.0, sr, len(r)), b + rng.normal(0.0, st, len(b))
         clutter = study.centre + rng.uniform(-study.half_width, study.half_width,
@@ -231,11 +236,14 @@ def _mean(values: list[float]) -> float | None:
 
 
 def run_study(runs: int, seed: int, pool: RunPool | None = None, scans: int | None = None,
-              geometries: tuple[str, ...] = GEOMETRIES, progress: bool | None = None) -> dict:
+              geometries: tuple[str, ...] = GEOMETRIES, progress: bool | None = None, unresolved: bool = False
+              ) -> dict:
     """Every geometry, ``runs`` runs each seeded ``seed``; the JSON-ready result (per-run figures too)."""
-    out = {'runs': runs, 'seed': seed, 'geometries': []}
+    out = {'runs': runs, 'seed': seed, 'unresolved': unresolved, 'geometries': []}
     for g in geometries:
-        study = JipdaStudy(geometry=g) if scans is None else JipdaStudy(geometry=g, scans=scans)
+        study = JipdaStudy(geometry=g, unresolved=unresolved)
+        if scans is not None:
+            study = JipdaStudy(geometry=g, scans=scans, unresolved=unresolved)
         results = run_monte_carlo(run_once, study, runs, seed, pool=pool, progress=Progress(g, runs, enabled=progress))
         out['geometries'].append({'geometry': g, 'study': _describe(study), **summarise(results),
                                   'per_run': results})

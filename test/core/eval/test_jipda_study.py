@@ -56,3 +56,11 @@ def test_run_is_a_function_of_its_seed_and_summary_shape():
     assert a == b and a != run_once(study, seeds[1])
     s = summarise([a, run_once(study, seeds[1])])
     assert set(s['means']) == {'ipda', 'jipda'} and s['jipda_minus_ipda']['gospa']['runs'] == 2
+
+
+def test_unresolved_targets_give_one_detection():
+    study = JipdaStudy(geometry='crossing', scans=21, p_detect=1.0, clutter_density=1e-12, unresolved=True)
+    truth, scans, _ = simulate(study, np.random.default_rng(1))
+    gap = np.hypot(*(truth[:, 0, :2] - truth[:, 1, :2]).T)
+    counts = np.array([len(z) for z, _ in scans])
+    assert counts[10] == 1 and np.all(counts[gap > 2 * study.cell] == 2)
