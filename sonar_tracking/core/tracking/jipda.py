@@ -64,6 +64,9 @@ from .errors import TrackingInputError
 from .gating import Innovations
 from .ipda import likelihood_ratios, segment_sum
 
+# Most states of the exact recursion (clusters x shared detections x 2^K) computed at once (32 MB).
+_DP_CELLS = 1 << 22
+
 __all__ = ['AssociationFactors', 'pair_likelihoods', 'track_clusters', 'association_factors', 'exact_factors']
 
 
@@ -217,12 +220,29 @@ def _exact_by_size(track, meas, weight, labels, sizes, u_prime, n_meas) -> np.nd
     out = np.ones(len(track))
     for k in np.unique(k_of):
         sel = np.flatnonzero(k_of == k)
-        ids, c_local = np.unique(cl[sel], return_inverse=True)
-        w = np.zeros((len(ids), k, int(m_count[sel].max())))
-        w[c_local, t_local[sel], m_local[sel]] = weight[sel]
-        u = np.zeros((len(ids), k))
-        u[c_local, t_local[sel]] = u_prime[track[sel]]
-        out[sel] = exact_factors(w, u)[c_local, t_local[sel], m_local[sel]]
+        ids, c_of = np.unique(cl[sel], return_inverse=True)
+        n_j = np.zeros(len(ids), dtype=np.intp)
+        n_j[c_of] = m_count[sel]
+        # Batches of clusters, fewest shared detections first, padded to the batch's largest:
+        # at most _DP_CELLS recursion states per batch (one cluster at least).
+        order = np.argsort(n_j, kind='stable')
+        batch = np.empty(len(ids), dtype=np.intp)
+        b, first = 0, 0
+        for pos in range(len(order)):
+            if pos > first and (pos - first + 1) * (int(n_j[order[pos]]) + 1) << k > _DP_CELLS:
+                b, first = b + 1, pos
+            batch[order[pos]] = b
+        for b in range(b + 1):
+            members = np.flatnonzero(batch == b)
+            rank = np.full(len(ids), -1)
+            rank[members] = np.arange(len(members))
+            ps = sel[rank[c_of] >= 0]
+            c_local = rank[c_of[rank[c_of] >= 0]]
+            w = np.zeros((len(members), k, int(n_j[members].max())))
+            w[c_local, t_local[ps], m_local[ps]] = weight[ps]
+            u = np.zeros((len(members), k))
+            u[c_local, t_local[ps]] = u_prime[track[ps]]
+            out[ps] = exact_factors(w, u)[c_local, t_local[ps], m_local[ps]]
     return out
 
 

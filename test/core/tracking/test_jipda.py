@@ -9,6 +9,7 @@ import pytest
 
 from sonar_tracking.core.config import ConfigError
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, innovations, ipda_update
+from sonar_tracking.core.tracking import jipda as jipda_module
 from sonar_tracking.core.tracking import tracker as tracker_module
 from sonar_tracking.core.tracking.gating import gate_threshold
 from sonar_tracking.core.tracking.jipda import association_factors, exact_factors, pair_likelihoods, track_clusters
@@ -91,6 +92,27 @@ def test_clusters_of_one_size_batched_equal_one_by_one():
     batched = exact_factors(w, u)
     for c in range(5):
         np.testing.assert_allclose(batched[c], exact_factors(w[c], u[c]), rtol=1e-14)
+
+
+def test_batches_of_clusters_equal_one_cluster_at_a_time(monkeypatch):
+    """Many three-track clusters with different numbers of shared detections: the batched recursion
+    (padded to the batch's largest) equals one cluster per batch."""
+    rng = np.random.default_rng(12)
+    tracks, meas = [], []
+    for c in range(20):
+        n_m = int(rng.integers(1, 6))
+        valid = rng.random((3, n_m)) < 0.7
+        valid[:, 0] = True                                   # all three share detection 0: one cluster
+        t, i = np.nonzero(valid)
+        tracks.append(3 * c + t)
+        meas.append(10 * c + i)
+    track, meas = np.concatenate(tracks), np.concatenate(meas)
+    weight, unassigned = rng.exponential(1.0, len(track)), rng.uniform(0.1, 1.0, 60)
+    together = association_factors(track, meas, weight, unassigned, 8)
+    monkeypatch.setattr(jipda_module, '_DP_CELLS', 1)
+    alone = association_factors(track, meas, weight, unassigned, 8)
+    assert together.clusters == 20 and together.largest == 3
+    np.testing.assert_allclose(alone.r, together.r, rtol=1e-13)
 
 
 def test_exact_factors_are_scale_free_and_handle_extreme_weights():
@@ -275,3 +297,14 @@ def test_association_settings_are_validated():
         config('jpda')
     with pytest.raises(ConfigError):
         config('jipda', **{'association.max_cluster': 13})
+
+
+def test_dense_clutter_stays_bounded_and_large_clusters_are_approximated():
+    rng = np.random.default_rng(19)
+    trk = ImmIpdaTracker(config('jipda', **{'track.max_pairs': 20_000}))
+    approximated = 0
+    for k in range(4):
+        out = trk.step(float(k), rng.uniform(-500, 500, (3000, 2)), None, np.full(3000, 3e-3))
+        approximated += trk.report.approximated_clusters
+        assert trk.report.n_pairs <= 20_000 and np.isfinite(out['x']).all()
+    assert approximated > 0 and trk.report.largest_cluster > 8
