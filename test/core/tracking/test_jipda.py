@@ -169,6 +169,14 @@ def test_two_track_clusters_above_the_limit_are_still_exact():
 def test_clusters_are_connected_components():
     labels = track_clusters(np.array([0, 1, 1, 2, 3]), np.array([0, 0, 1, 2, 1]), 5, 3)
     assert labels[0] == labels[1] == labels[3] and len({labels[0], labels[2], labels[4]}) == 3
+    # A chain in scrambled order (track k and k+1 share one measurement) is one component.
+    rng = np.random.default_rng(0)
+    perm = rng.permutation(3000)
+    t = np.concatenate((perm[:-1], perm[1:]))
+    m = np.concatenate((np.arange(2999), np.arange(2999)))
+    order = np.argsort(t, kind='stable')
+    chain = track_clusters(t[order], m[order], 3001, 2999)
+    assert np.all(chain[:3000] == 0) and chain[3000] == 3000
 
 
 def test_jipda_ipda_update_equals_joint_events_with_imm_modes():
