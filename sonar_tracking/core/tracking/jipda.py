@@ -232,19 +232,24 @@ def _exact_by_size(track, meas, weight, labels, sizes, u_prime, n_meas) -> np.nd
         n_j[c_of] = m_count[sel]
         # Batches of clusters, fewest shared detections first, padded to the batch's largest:
         # at most _DP_CELLS recursion states per batch (one cluster at least).
-        order = np.argsort(n_j, kind='stable')
-        batch = np.empty(len(ids), dtype=np.intp)
-        b, first = 0, 0
-        for pos in range(len(order)):
-            if pos > first and (pos - first + 1) * (int(n_j[order[pos]]) + 1) << k > _DP_CELLS:
-                b, first = b + 1, pos
-            batch[order[pos]] = b
-        for b in range(b + 1):
-            members = np.flatnonzero(batch == b)
-            rank = np.full(len(ids), -1)
-            rank[members] = np.arange(len(members))
-            ps = sel[rank[c_of] >= 0]
-            c_local = rank[c_of[rank[c_of] >= 0]]
+        batch = np.zeros(len(ids), dtype=np.intp)
+        n_batches = 1
+        if len(ids) * (int(n_j.max()) + 1) << k > _DP_CELLS:
+            order = np.argsort(n_j, kind='stable')
+            first = 0
+            for pos in range(len(order)):
+                if pos > first and (pos - first + 1) * (int(n_j[order[pos]]) + 1) << k > _DP_CELLS:
+                    n_batches, first = n_batches + 1, pos
+                batch[order[pos]] = n_batches - 1
+        for b in range(n_batches):
+            if n_batches == 1:                                # every cluster of this size at once
+                members, ps, c_local = np.arange(len(ids)), sel, c_of
+            else:
+                members = np.flatnonzero(batch == b)
+                rank = np.full(len(ids), -1)
+                rank[members] = np.arange(len(members))
+                ps = sel[rank[c_of] >= 0]
+                c_local = rank[c_of[rank[c_of] >= 0]]
             w = np.zeros((len(members), k, int(n_j[members].max())))
             w[c_local, t_local[ps], m_local[ps]] = weight[ps]
             u = np.zeros((len(members), k))
