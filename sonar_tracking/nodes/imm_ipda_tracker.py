@@ -126,6 +126,9 @@ class ImmIpdaTrackerNode(SonarNode):
                   'rejected_rows_total': str(self.rejected_rows), 'resets_total': str(self.resets),
                   'not_initiated': str(rep.not_initiated), 'pair_capped': str(rep.pair_capped),
                   'left_coverage': str(rep.left_coverage)}
+        if self.tracker.config.association.method == 'jipda':
+            values.update(clusters=str(rep.clusters), largest_cluster=str(rep.largest_cluster),
+                          approximated_clusters=str(rep.approximated_clusters))
         pose = self.coverage.pose
         if pose.has_odometry:
             x, y, yaw = pose.pose_at(int(pose.newest * 1e9))

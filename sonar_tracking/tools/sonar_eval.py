@@ -14,6 +14,8 @@ Subcommands:
                    intervals and where the corrections come from: the README table
   structure        confirmed tracks on static structure (walls, seabed, piles, ringdown), with and
                    without rejection, next to the structure-free scenes
+  jipda            IMM-JIPDA against IMM-IPDA on two crossing or parallel targets in clutter, paired
+                   differences with 95 % intervals: the README table
 
 The Monte Carlo subcommands run over --jobs processes or a Dask cluster (--cluster).
 """
@@ -27,7 +29,7 @@ __all__ = ['main', 'build_parser']
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand (their modules load only when run)."""
-    from . import bench, esc_eval, fls_eval, select_features, structure_eval, track_csv
+    from . import bench, esc_eval, fls_eval, jipda_eval, select_features, structure_eval, track_csv
     parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].replace('``', ''),
                                      epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -66,6 +68,10 @@ def build_parser() -> argparse.ArgumentParser:
                        'without rejection, and the targets against the structure-free twin')
     structure_eval.add_arguments(p)
     p.set_defaults(handler=structure_eval.main_args)
+    p = sub.add_parser('jipda', help='IMM-JIPDA against IMM-IPDA on crossing and parallel targets in clutter, '
+                       'paired differences with 95 %% intervals (the README table)')
+    jipda_eval.add_arguments(p)
+    p.set_defaults(handler=jipda_eval.main_args)
     return parser
 
 

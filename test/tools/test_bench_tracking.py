@@ -75,3 +75,22 @@ def test_stonesoup_missing_is_reported_not_failed(monkeypatch, capsys):
                       derived=tracking._derived('tracking.stonesoup.test', 20))
     result = bench.run_case(case)
     assert 'stonesoup not installed' in result.extra['note']
+
+
+def test_pair_cases_share_detections_and_baselines():
+    cases = bench.cases()
+    for k in tracking.PAIRS:
+        assert cases[f'tracking.imm_jipda.pairs{k}'].compare_to == f'tracking.stonesoup_jpda.pairs{k}'
+        assert cases[f'tracking.imm_ipda.pairs{k}'].compare_to == f'tracking.imm_jipda.pairs{k}'
+    assert [len(z) for _, z, _, _ in tracking.scans(20, 30, n_targets=10)] == \
+        [len(z) for _, z, _, _ in tracking.scans(20, 30, n_targets=10, pair_gap=15.0)]
+    z = tracking.scans(0, 1, seed=3, n_targets=10, pair_gap=15.0)[0][1]
+    gaps = np.hypot(*(z[:, None] - z[None]).transpose(2, 0, 1))
+    np.fill_diagonal(gaps, np.inf)
+    assert np.median(gaps.min(axis=1)) < 40.0           # each target has its partner close by
+
+
+def test_jipda_case_steps_and_clusters_form():
+    fn = tracking._ours(20, 'test.jipda', n_targets=2, n_scans=60, association='jipda', pair_gap=15.0)()
+    assert all(fn() > 0 for _ in range(3))
+    assert tracking._STEPPERS['test.jipda'].tracker.config.association.method == 'jipda'

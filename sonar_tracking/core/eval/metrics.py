@@ -39,7 +39,8 @@ from scipy.optimize import linear_sum_assignment
 __all__ = ['TAU_TRUE', 'TAU_FALSE', 'MetricError', 'cft_scan_rate', 'paired_difference', 'ftd_distances',
            'TrackClasses', 'classify_tracks',
            'ScanEvaluation', 'evaluate_scan', 'confirmed_true_track_rate', 'position_rmse',
-           'confirmed_false_track_rate', 'OspaResult', 'ospa', 'GospaResult', 'gospa', 'center_location_error']
+           'confirmed_false_track_rate', 'OspaResult', 'ospa', 'GospaResult', 'gospa', 'gospa_assignment',
+           'center_location_error']
 
 #: Thresholds of eqs. (47)-(48) used in the paper.
 TAU_TRUE = 20.0
@@ -282,6 +283,17 @@ def gospa(X, Y, c: float, p: float = 2.0, alpha: float = 2.0) -> GospaResult:
     loc = float(np.sum(pair_d[real] ** p))
     n_real = int(np.count_nonzero(real))
     return GospaResult(distance=total ** (1.0 / p), localisation=loc ** (1.0 / p), missed=m - n_real, false=n - n_real)
+
+
+def gospa_assignment(X, Y, c: float, p: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs ``(rows of X, rows of Y)`` that :func:`gospa` (``alpha = 2``) assigns: its optimal
+    assignment, keeping the pairs closer than ``c`` (the others count as missed and false)."""
+    X, Y = _check(X, Y, c, p)
+    if len(X) == 0 or len(Y) == 0:
+        return np.zeros(0, dtype=np.intp), np.zeros(0, dtype=np.intp)
+    d, rows, cols = _cutoff_costs(X, Y, c, p)
+    real = d[rows, cols] < c
+    return rows[real], cols[real]
 
 
 def center_location_error(estimated, truth) -> np.ndarray | float:

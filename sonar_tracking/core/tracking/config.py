@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from ..config import Config, ConfigError, setting
 
 __all__ = ['ImmConfig', 'DetectionConfig', 'ClutterConfig', 'ExistenceConfig', 'InitConfig', 'TrackConfig',
-           'TrackerConfig', 'MODE_NAMES', 'PAPER_INITIATION']
+           'AssociationConfig', 'TrackerConfig', 'MODE_NAMES', 'PAPER_INITIATION']
 
 #: The paper's one-point initiation (a track from every detection no confirmed track validated);
 #: studies reproducing the ESC paper merge this into their settings (the default, ``all``, starts
@@ -133,6 +133,18 @@ class TrackConfig(Config):
 
 
 @dataclass(frozen=True)
+class AssociationConfig(Config):
+    """How tracks share a scan's detections: independent IPDAs (the paper) or Joint IPDA (not in the paper)."""
+
+    method: str = setting('ipda', 'ipda = every track an independent IMM-IPDA (the ESC paper); jipda = IMM-JIPDA '
+                          '(Musicki & Evans 2004): tracks that share validated detections compete for them',
+                          choices=('ipda', 'jipda'))
+    max_cluster: int = setting(8, 'jipda: clusters of tracks sharing detections up to this many tracks are exact '
+                               '(work ~ 2^max_cluster per shared detection); larger ones use the LM-IPDA '
+                               'approximation (see core/tracking/jipda.py)', low=1, high=12)
+
+
+@dataclass(frozen=True)
 class TrackerConfig(Config):
     """Every setting of :class:`~sonar_tracking.core.tracking.tracker.ImmIpdaTracker`."""
 
@@ -142,6 +154,7 @@ class TrackerConfig(Config):
     existence: ExistenceConfig = ExistenceConfig()
     init: InitConfig = InitConfig()
     track: TrackConfig = TrackConfig()
+    association: AssociationConfig = AssociationConfig()
 
     def turn_rates(self) -> dict[str, float]:
         """Signed turn rate [rad/s] of each CTR mode: ccw positive, cw negative (REP-103)."""

@@ -44,7 +44,7 @@ from .errors import TrackingInputError
 from .gating import Innovations
 from .markov import update_existence
 
-__all__ = ['IpdaResult', 'ipda_update', 'segment_sum']
+__all__ = ['IpdaResult', 'likelihood_ratios', 'ipda_update', 'segment_sum']
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,14 @@ def segment_sum(values: np.ndarray, segment: np.ndarray, n: int) -> np.ndarray:
     return np.stack([np.bincount(segment, weights=v, minlength=n) for v in values])
 
 
+def likelihood_ratios(innov: Innovations, in_gate: np.ndarray, rho: np.ndarray, p_gate: float) -> np.ndarray:
+    """``(M, P)`` ``p^m_i / rho_i``: eq. (28) per mode (zero outside the mode's gate) over the clutter
+    density of eqs. (32)-(33)."""
+    a = np.where(in_gate, innov.density(), 0.0)
+    a *= 1.0 / (p_gate * rho)
+    return a
+
+
 def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, existence_pred: np.ndarray,
                 track: np.ndarray, innov: Innovations, in_gate: np.ndarray, rho: np.ndarray,
                 p_detect: float, p_gate: float) -> IpdaResult:
@@ -110,9 +118,7 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     if len(track) > 1 and np.any(track[1:] < track[:-1]):
         raise TrackingInputError('ipda_update: pairs must be sorted by track')
     pdpg = p_detect * p_gate
-    # eq. (28) per mode (zero outside the mode's gate), divided by rho_i (eqs. 32-33).
-    a = np.where(in_gate, innov.density(), 0.0)
-    a *= 1.0 / (p_gate * rho)
+    a = likelihood_ratios(innov, in_gate, rho, p_gate)              # eq. (28) over rho_i (eqs. 32-33)
     w = innov.w
     iu, ju, sym = _symmetric_indices(d)
     # Per pair and mode: a, a w and a (w w^T - S^-1) (upper triangle), summed per track below.

@@ -28,6 +28,13 @@ tracks are kept, at most ``track.max_pairs`` candidate pairs are formed, and the
 chunks of at most ``_CHUNK_PAIRS`` (tracks are independent IPDAs, so chunking changes no result):
 the per-pair arrays never exceed a fixed size.
 
+Association (``association.method``, not in the paper): ``ipda`` (default) as above; ``jipda``
+makes tracks that share validated detections compete for them (IMM-JIPDA,
+:mod:`~sonar_tracking.core.tracking.jipda`): every chunk is gated first and the JIPDA factor of
+each pair found over the whole scan's clusters (one scalar per pair), then each chunk is updated
+by the same IPDA update with the pair's clutter density divided by its factor. Exact clusters have
+at most ``association.max_cluster`` tracks, so the extra work per scan stays bounded.
+
 Coverage (optional, not in the paper): ``step(..., coverage=...)`` takes the polar window the
 scan covered (:class:`~sonar_tracking.core.tracking.coverage.Coverage`); a track whose estimate
 has stayed outside the windows of successive scans for ``track.outside_time`` seconds ends
@@ -47,6 +54,7 @@ from .errors import TrackingInputError
 from .gating import BoxSearch, gate_boxes, gate_threshold, innovations
 from .imm import combine, interaction
 from .ipda import ipda_update
+from .jipda import association_factors, pair_likelihoods
 from .kalman import predict, transition_operators
 from .management import (birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
                          one_point_initiation, pair_budget, unused_measurements)
@@ -104,6 +112,9 @@ class StepReport:
     dropped_numerical: int = 0
     n_tracks: int = 0
     n_confirmed: int = 0
+    clusters: int = 0                 # association.method jipda: clusters of >= 2 tracks sharing detections,
+    largest_cluster: int = 0          # the tracks in the largest,
+    approximated_clusters: int = 0    # and the clusters above association.max_cluster (approximated)
 
 
 class ImmIpdaTracker:
@@ -301,17 +312,24 @@ class ImmIpdaTracker:
                 n_tracks = len(self._ids)
                 search = BoxSearch(lo, hi, z)
             bounds = _chunk_bounds(counts, _CHUNK_PAIRS)
+        r = gated = None
+        if cfg.association.method == 'jipda':
+            r, gated = self._association(mu_pred, e_pred, track_side, search, z, meas_side, rho, bounds, lo, hi, rep)
         if len(bounds) == 2:   # one group: the search that counted the pairs finds them
-            res, pt, pm = self._update_chunk(x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho)
+            res, pt, pm = self._update_chunk(x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho, r,
+                                             gated)
             self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
         else:
             self._x, self._P = np.empty_like(x_pred), np.empty_like(P_pred)
             self._mu, self._exist = np.empty_like(mu_pred), np.empty_like(e_pred)
             pts, pms = [], []
+            done = 0
             for a, b in zip(bounds[:-1], bounds[1:]):
+                r_chunk = None if r is None else r[done:]
                 res, pt, pm = self._update_chunk(x_pred[..., a:b], P_pred[..., a:b], mu_pred[:, a:b], e_pred[a:b],
                                                  track_side[..., a:b], BoxSearch(lo[a:b], hi[a:b], z), z, meas_side,
-                                                 rho)
+                                                 rho, r_chunk)
+                done += len(pt)
                 self._x[..., a:b], self._P[..., a:b], self._mu[:, a:b] = res.x, res.P, res.mu
                 self._exist[a:b] = res.existence
                 pts.append(pt + a)
@@ -320,9 +338,9 @@ class ImmIpdaTracker:
         self._xc, self._Pc = combine(self._mu, self._x, self._P)                     # eqs. (41)-(42)
         return pt, pm
 
-    def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho):
-        """Gate and update a contiguous group of tracks (eqs. 25-40); pairs indexed within the group."""
-        cfg, d = self.config, self.d
+    def _gate_chunk(self, track_side, search, meas_side):
+        """Validated pairs of a contiguous group of tracks (eqs. 25-26): ``pt, pm, innov, in_gate``."""
+        d = self.d
         pt, pm = search.pairs()
         tg = np.take(track_side, pt, axis=-1)
         mg = np.take(meas_side, pm, axis=-1)
@@ -333,9 +351,45 @@ class ImmIpdaTracker:
         if not valid.all():
             keep = np.flatnonzero(valid)
             pt, pm, in_gate, innov = pt[keep], pm[keep], in_gate[:, keep], innov.select(keep)
-        res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho[pm],
+        return pt, pm, innov, in_gate
+
+    def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho, r=None,
+                      gated=None):
+        """Gate and update a contiguous group of tracks (eqs. 25-40); pairs indexed within the group.
+
+        ``r``: JIPDA factors of the group's pairs (the first ones are used), dividing their clutter
+        density; ``gated``: the group's validated pairs when already gated."""
+        cfg = self.config
+        pt, pm, innov, in_gate = gated if gated is not None else self._gate_chunk(track_side, search, meas_side)
+        rho_pairs = rho[pm] if r is None else rho[pm] / r[:len(pm)]
+        res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho_pairs,
                           cfg.detection.probability, cfg.detection.gate_probability)  # eqs. (28)-(40)
         return res, pt, pm
+
+    def _association(self, mu_pred, e_pred, track_side, search, z, meas_side, rho, bounds, lo, hi, rep):
+        """JIPDA factors ``r`` of every validated pair of the scan, in the order the chunks visit them,
+        and the gated pairs when there is one chunk.
+
+        The pairs of all chunks are gated first, so a cluster spanning chunks is treated whole; with
+        several chunks each gates again for its update (the same pairs in the same order), so only
+        one scalar per pair is kept across chunks."""
+        cfg = self.config
+        pdpg = cfg.detection.probability * cfg.detection.gate_probability
+        tracks, meas, weight = [], [], []
+        gated = None
+        for a, b in zip(bounds[:-1], bounds[1:]):
+            chunk_search = search if len(bounds) == 2 else BoxSearch(lo[a:b], hi[a:b], z)
+            pt, pm, innov, in_gate = gated = self._gate_chunk(track_side[..., a:b], chunk_search, meas_side)
+            like = pair_likelihoods(mu_pred[:, a:b], pt, innov, in_gate, rho[pm], cfg.detection.probability,
+                                    cfg.detection.gate_probability)
+            tracks.append(pt + a)
+            meas.append(pm)
+            weight.append(e_pred[pt + a] * like)
+        factors = association_factors(np.concatenate(tracks), np.concatenate(meas), np.concatenate(weight),
+                                      1.0 - e_pred * pdpg, cfg.association.max_cluster)
+        rep.clusters, rep.largest_cluster, rep.approximated_clusters = (factors.clusters, factors.largest,
+                                                                       factors.approximated)
+        return factors.r, (gated if len(bounds) == 2 else None)
 
     def _keep(self, keep: np.ndarray) -> None:
         """Keep only the tracks ``keep`` (bool mask) in every per-track array."""

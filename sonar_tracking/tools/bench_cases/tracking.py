@@ -18,7 +18,12 @@ previous size of the same series (log ratio of medians), when both ran.
   (``PDAHypothesiser``: same P_D, P_G 0.99, clutter density), one CV model with the same process
   noise, ``MultiMeasurementInitiator`` (2 points, GNN with a 3-sigma Mahalanobis gate, prior
   velocity variance as ours), tracks deleted after 3 scans without an update or when their
-  position variance exceeds ours (30 m std per axis). Stone Soup is a bench extra
+  position variance exceeds ours (30 m std per axis).
+* ``tracking.imm_jipda.pairsK`` / ``tracking.imm_ipda.pairsK`` / ``tracking.stonesoup_jpda.pairsK``:
+  K targets in pairs 15 m apart (their gates overlap) + 20 clutter: ours with
+  ``association.method: jipda`` (ratio against Stone Soup's JPDA), ours with ``ipda`` (ratio: the
+  JIPDA time over the IPDA time) and Stone Soup 1.9.1 with ``JPDA`` (same ``PDAHypothesiser``)
+  in place of ``PDA``, otherwise as above. Stone Soup is a bench extra
   (``pip install -r requirements-bench.txt``); without it these cases say so in the table and
   report no time.
 """
@@ -43,6 +48,8 @@ TARGETS = (1, 10, 50, 200)
 STONESOUP = (('c0', 0, 1, 30, 30), ('c20', 20, 1, 30, 30), ('c100', 100, 1, 4, 4), ('c1000', 1000, 1, 1, 1),
              ('t10', 20, 10, 10, 15), ('t50', 20, 50, 4, 6), ('t200', 20, 200, 2, 3))
 _SS_TAGS = {tag for tag, *_ in STONESOUP}
+PAIRS = (2, 10)                # JIPDA cases: targets in pairs
+PAIR_GAP = 15.0                # [m] between the two targets of a pair (3 sigma of R0: their gates overlap)
 FLOOD = 20000
 FLOOD_SCANS = 100
 P_D = 0.9
@@ -54,22 +61,29 @@ STONESOUP_VERSION = '1.9.1'
 MISSING = f'SKIPPED: stonesoup not installed (pip install -r requirements-bench.txt for stonesoup=={STONESOUP_VERSION})'
 
 
-def scans(n_clutter: int, n_scans: int, seed: int = 7, n_targets: int = 1
+def scans(n_clutter: int, n_scans: int, seed: int = 7, n_targets: int = 1, pair_gap: float = 0.0
           ) -> list[tuple[float, np.ndarray, np.ndarray, np.ndarray]]:
     """``(t, z, R, rho)`` per scan: the targets (each with probability P_D) and Poisson clutter.
 
     Targets start on a grid over the square and move at 4.5 m/s in directions spread over the
-    circle; every 200 scans they start again. ``R`` is a read-only broadcast of ``R0``.
+    circle; every 200 scans they start again. With ``pair_gap`` > 0 they go in pairs instead: the
+    grid holds ``n_targets / 2`` pairs, the two of a pair on parallel courses ``pair_gap`` m apart.
+    ``R`` is a read-only broadcast of ``R0``.
     """
     rng = np.random.default_rng(seed)
     rho = max(n_clutter, 1) / (2 * HALF) ** 2
-    side = math.ceil(math.sqrt(n_targets))
+    n_groups = n_targets // 2 if pair_gap > 0 else n_targets
+    side = math.ceil(math.sqrt(n_groups))
     grid = (np.arange(side) + 0.5) / side * 1.6 * HALF - 0.8 * HALF
-    start = np.stack(np.meshgrid(grid, grid), -1).reshape(-1, 2)[:n_targets]
-    if n_targets == 1:
+    start = np.stack(np.meshgrid(grid, grid), -1).reshape(-1, 2)[:n_groups]
+    if n_groups == 1:
         start = np.array([[-400.0, -200.0]])
-    angle = np.arctan2(2.0, 4.0) + 2 * math.pi * np.arange(n_targets) / n_targets
+    angle = np.arctan2(2.0, 4.0) + 2 * math.pi * np.arange(n_groups) / n_groups
     vel = math.hypot(4.0, 2.0) * np.stack((np.cos(angle), np.sin(angle)), -1)
+    if pair_gap > 0:
+        normal = np.stack((-np.sin(angle), np.cos(angle)), -1) * (pair_gap / 2.0)
+        start = np.concatenate((start + normal, start - normal))
+        vel = np.concatenate((vel, vel))
     out = []
     for k in range(n_scans):
         clutter = rng.uniform(-HALF, HALF, (rng.poisson(n_clutter), 2))
@@ -118,17 +132,19 @@ class _Stepper:
 _STEPPERS: dict[str, _Stepper] = {}
 
 
-def _ours(n_clutter: int, name: str, n_targets: int = 1, n_scans: int = 400):
+def _ours(n_clutter: int, name: str, n_targets: int = 1, n_scans: int = 400, association: str = 'ipda',
+          pair_gap: float = 0.0):
     def make():
         from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig
         cfg = TrackerConfig.from_flat({'detection.probability': P_D, 'clutter.source': 'detection',
-                                       'imm.noise_cv': Q, 'init.speed_max': SPEED_MAX})
+                                       'imm.noise_cv': Q, 'init.speed_max': SPEED_MAX,
+                                       'association.method': association})
 
         def step(tracker, scan):
             tracker.step(*scan)
             return tracker.n_tracks
-        stepper = _Stepper(lambda: ImmIpdaTracker(cfg), step, scans(n_clutter, n_scans, n_targets=n_targets),
-                           warmup=40)
+        stepper = _Stepper(lambda: ImmIpdaTracker(cfg), step,
+                           scans(n_clutter, n_scans, n_targets=n_targets, pair_gap=pair_gap), warmup=40)
         _STEPPERS[name] = stepper
         return stepper
     return make
@@ -181,7 +197,8 @@ def _flood_derived(r: Result) -> dict:
             'max_tracks': _FLOOD.get('max_tracks', math.nan), 'max_ms': r.max_s * 1e3}
 
 
-def _stonesoup(n_clutter: int, name: str, warmup: int, n_targets: int = 1):
+def _stonesoup(n_clutter: int, name: str, warmup: int, n_targets: int = 1, joint: bool = False,
+               pair_gap: float = 0.0):
     def make():
         try:
             import stonesoup
@@ -191,18 +208,18 @@ def _stonesoup(n_clutter: int, name: str, warmup: int, n_targets: int = 1):
         if stonesoup.__version__ != STONESOUP_VERSION:
             print(f'  {name}: stonesoup {stonesoup.__version__} installed, the comparison was set up for '
                   f'{STONESOUP_VERSION}', file=sys.stderr)
-        data = _stonesoup_scans(n_clutter, warmup + 60, n_targets)
+        data = _stonesoup_scans(n_clutter, warmup + 60, n_targets, pair_gap)
         rho = max(n_clutter, 1) / (2 * HALF) ** 2        # as ours (scans())
 
         def step(tracker, scan):
             return len(next(tracker)[1])
-        stepper = _Stepper(lambda: _stonesoup_tracker(data, rho), step, data, warmup=warmup)
+        stepper = _Stepper(lambda: _stonesoup_tracker(data, rho, joint), step, data, warmup=warmup)
         _STEPPERS[name] = stepper
         return stepper
     return make
 
 
-def _stonesoup_scans(n_clutter: int, n_scans: int, n_targets: int = 1):
+def _stonesoup_scans(n_clutter: int, n_scans: int, n_targets: int = 1, pair_gap: float = 0.0):
     from datetime import datetime, timedelta
 
     from stonesoup.models.measurement.linear import LinearGaussian
@@ -210,15 +227,15 @@ def _stonesoup_scans(n_clutter: int, n_scans: int, n_targets: int = 1):
     model = LinearGaussian(ndim_state=4, mapping=(0, 2), noise_covar=R0)
     t0 = datetime(2025, 1, 1)
     out = []
-    for t, z, _, _ in scans(n_clutter, n_scans, n_targets=n_targets):
+    for t, z, _, _ in scans(n_clutter, n_scans, n_targets=n_targets, pair_gap=pair_gap):
         ts = t0 + timedelta(seconds=t)
         out.append((ts, {Detection(np.array([[a], [b]]), timestamp=ts, measurement_model=model) for a, b in z}))
     return out
 
 
-def _stonesoup_tracker(data, rho):
+def _stonesoup_tracker(data, rho, joint: bool = False):
     from stonesoup.dataassociator.neighbour import GNNWith2DAssignment
-    from stonesoup.dataassociator.probability import PDA
+    from stonesoup.dataassociator.probability import JPDA, PDA
     from stonesoup.deleter.error import CovarianceBasedDeleter
     from stonesoup.deleter.multi import CompositeDeleter
     from stonesoup.deleter.time import UpdateTimeStepsDeleter
@@ -249,8 +266,8 @@ def _stonesoup_tracker(data, rho):
         data_associator=GNNWith2DAssignment(DistanceHypothesiser(predictor, updater, Mahalanobis(), missed_distance=3)))
     tracker = MultiTargetMixtureTracker(
         initiator=initiator, deleter=deleter(), detector=iter(data), updater=updater,
-        data_associator=PDA(PDAHypothesiser(predictor, updater, clutter_spatial_density=rho, prob_detect=P_D,
-                                            prob_gate=0.99)))
+        data_associator=(JPDA if joint else PDA)(PDAHypothesiser(predictor, updater, clutter_spatial_density=rho,
+                                                                 prob_detect=P_D, prob_gate=0.99)))
     return iter(tracker)
 
 
@@ -306,3 +323,21 @@ for _tag, _n, _k, _warm, _reps in STONESOUP:
         derived=_derived(_name, _n + P_D * _k),
         description=f'Stone Soup {STONESOUP_VERSION} MultiTargetMixtureTracker + PDA + MultiMeasurementInitiator, '
                     f'same detections ({_k} targets, {_n} clutter/scan)'))
+
+for _k in PAIRS:
+    _ipda, _jipda, _ss = (f'tracking.imm_ipda.pairs{_k}', f'tracking.imm_jipda.pairs{_k}',
+                          f'tracking.stonesoup_jpda.pairs{_k}')
+    register(Case(
+        name=_jipda, group='tracking', make=_ours(20, _jipda, n_targets=_k, association='jipda', pair_gap=PAIR_GAP),
+        self_timed=True, repeats=150, compare_to=_ss, derived=_derived(_jipda, 20 + P_D * _k),
+        description=f'IMM-JIPDA, 3 modes: one scan, {_k} CV targets in pairs {PAIR_GAP:g} m apart (P_D 0.9) '
+                    '+ 20 clutter/scan over 1 km^2 (core)'))
+    register(Case(
+        name=_ipda, group='tracking', make=_ours(20, _ipda, n_targets=_k, pair_gap=PAIR_GAP), self_timed=True,
+        repeats=150, compare_to=_jipda, derived=_derived(_ipda, 20 + P_D * _k),
+        description=f'IMM-IPDA, 3 modes: the same scans as {_jipda} (ratio: JIPDA time / IPDA time)'))
+    register(Case(
+        name=_ss, group='tracking', make=_stonesoup(20, _ss, 10, _k, joint=True, pair_gap=PAIR_GAP),
+        self_timed=True, repeats=15, derived=_derived(_ss, 20 + P_D * _k),
+        description=f'Stone Soup {STONESOUP_VERSION} MultiTargetMixtureTracker + JPDA + MultiMeasurementInitiator, '
+                    f'same detections as {_jipda}'))
