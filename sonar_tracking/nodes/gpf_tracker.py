@@ -122,7 +122,6 @@ class GpfTrackerNode(SonarNode):
             self.origin_ns = stamp   # times relative to the first stamp keep nanosecond resolution
         t = (stamp - self.origin_ns) * 1e-9
         pose = self.pose.pose_at(stamp)
-        frame_id = frame['image'].header.frame_id or self.config.world_frame
         if not (image > 0).any():
             self.say('warning', f'{where}: the image holds no data; tracks are only predicted')
         try:
@@ -135,7 +134,7 @@ class GpfTrackerNode(SonarNode):
             self.say('warning', f'{where}: {text}')
         self.time.accept(stamp)
         self.processed += 1
-        self.out.publish(tracks, stamp, frame_id, self.config)
+        self.out.publish(tracks, stamp, frame['image'].header.frame_id or self.config.world_frame, self.config)
         self.diag.done(started)
         self.diag.values = {'frames': str(self.processed), 'resets_total': str(self.resets),
                             'odometry': 'yes' if self.pose.has_odometry else 'no (sonar_pose)'} | rep.summary()

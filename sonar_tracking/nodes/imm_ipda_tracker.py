@@ -119,16 +119,8 @@ class ImmIpdaTrackerNode(SonarNode):
         self.diag.values = self._values(len(z))
 
     def _values(self, n_detections: int) -> dict[str, str]:
-        rep = self.tracker.report
-        values = {'detections': str(n_detections), 'tracks': str(rep.n_tracks), 'confirmed': str(rep.n_confirmed),
-                  'validated_pairs': str(rep.n_pairs), 'initiated': str(rep.initiated),
-                  'terminated': str(rep.terminated), 'merged': str(rep.merged),
-                  'rejected_rows_total': str(self.rejected_rows), 'resets_total': str(self.resets),
-                  'not_initiated': str(rep.not_initiated), 'pair_capped': str(rep.pair_capped),
-                  'left_coverage': str(rep.left_coverage)}
-        if self.tracker.config.association.method == 'jipda':
-            values.update(clusters=str(rep.clusters), largest_cluster=str(rep.largest_cluster),
-                          approximated_clusters=str(rep.approximated_clusters))
+        values = {'detections': str(n_detections), **self.tracker.report.summary(),
+                  'rejected_rows_total': str(self.rejected_rows), 'resets_total': str(self.resets)}
         pose = self.coverage.pose
         if pose.has_odometry:
             x, y, yaw = pose.pose_at(int(pose.newest * 1e9))

@@ -112,9 +112,19 @@ class StepReport:
     dropped_numerical: int = 0
     n_tracks: int = 0
     n_confirmed: int = 0
+    association: str = 'ipda'
     clusters: int = 0                 # association.method jipda: clusters of >= 2 tracks sharing detections,
     largest_cluster: int = 0          # the tracks in the largest,
     approximated_clusters: int = 0    # and the clusters above association.max_cluster (approximated)
+
+    def summary(self) -> dict[str, str]:
+        """The scan's counts by name, as text (a node's diagnostics); cluster counts with JIPDA only."""
+        names = ['n_tracks', 'n_confirmed', 'n_pairs', 'initiated', 'terminated', 'merged', 'not_initiated',
+                 'pair_capped', 'left_coverage']
+        if self.association == 'jipda':
+            names += ['clusters', 'largest_cluster', 'approximated_clusters']
+        label = {'n_tracks': 'tracks', 'n_confirmed': 'confirmed', 'n_pairs': 'validated_pairs'}
+        return {label.get(n, n): str(getattr(self, n)) for n in names}
 
 
 class ImmIpdaTracker:
@@ -230,7 +240,7 @@ class ImmIpdaTracker:
         if cfg.clutter.source == 'constant':
             rho = None
         z, R, rho = as_measurements(z, R, rho, default_R=self._default_R, default_rho=cfg.clutter.density)
-        rep = self.report = StepReport(t=t, n_measurements=len(z))
+        rep = self.report = StepReport(t=t, n_measurements=len(z), association=cfg.association.method)
         if self._t is not None:
             dt = t - self._t
             if dt == 0.0:
