@@ -54,20 +54,25 @@ def run_node(factory: Callable[[], 'rclpy.node.Node'], args: list[str] | None = 
     """Init rclpy, spin the node until Ctrl-C or shutdown, clean up; returns the exit status."""
     prepare_process()
     import rclpy
-    from rclpy.executors import ExternalShutdownException
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     rclpy.init(args=args)
+    # Made before the node: a Ctrl-C while the node is being built (it is in the graph by then)
+    # cannot meet an executor half made on a context already shut down.
+    executor = SingleThreadedExecutor()
     node = None
     try:
         node = factory()
-        rclpy.spin(node)
+        executor.add_node(node)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except Exception:
-        # Ctrl-C while the node or the executor was still being made: rclpy's signal handler shut the
-        # context down under it, and the call that failed on it is a stop, not a failure.
+        # Ctrl-C while the node was still being built: rclpy's signal handler shut the context down
+        # under it, and the call that failed on it is a stop, not a failure.
         if rclpy.ok():
             raise
     finally:
+        executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
