@@ -29,6 +29,19 @@ def types(request, rosbags_types):
     return rclpy_types() if request.param == 'rclpy' else rosbags_types
 
 
+def spin(executor) -> None:
+    """``executor.spin()`` in a test's background thread, kept alive when the test's thread destroys a
+    subscription or client while the executor waits on it: rclpy then raises ``InvalidHandle`` in the
+    executor's thread, which would end it and silently stop every callback of the test."""
+    from rclpy.exceptions import InvalidHandle
+    while True:
+        try:
+            executor.spin()
+            return          # shut down
+        except InvalidHandle:
+            continue        # an entity went away under the wait set: wait on the others
+
+
 @pytest.fixture(scope='session')
 def graph_node():
     """An rclpy node of the test process, for looking at the ROS graph."""
@@ -52,7 +65,7 @@ def ros(graph_node):
 
     executor = SingleThreadedExecutor(context=graph_node.context)
     executor.add_node(graph_node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread = threading.Thread(target=spin, args=(executor,), daemon=True)
     thread.start()
 
     class Ros:
@@ -165,7 +178,7 @@ def inproc(graph_node):
                         parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
         executor = SingleThreadedExecutor(context=graph_node.context)
         executor.add_node(node)
-        thread = threading.Thread(target=executor.spin, daemon=True)
+        thread = threading.Thread(target=spin, args=(executor,), daemon=True)
         thread.start()
         started.append((node, executor, thread))
         return node
