@@ -168,8 +168,9 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
     if len(conf) * n <= _DENSE_DUPLICATES:
-        # Few tracks: the position test on every (confirmed, track) pair costs fewer numpy calls.
-        ci, tj = np.repeat(conf, n), np.tile(np.arange(n), len(conf))
+        # Few tracks: the position test on every (confirmed, track) combination at once, as a
+        # (confirmed, track) grid (fewer numpy calls than building the pairs first).
+        ci, tj = _near_grid(x, P, conf, threshold)
     else:
         pos = x[:2].T                                                       # (T, 2)
         half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
@@ -185,16 +186,16 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
                 search = BoxSearch(lo, hi, pos)
         ci, tj = search.pairs()
         ci = conf[ci]
-    dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
-    a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
-    with np.errstate(divide='ignore', invalid='ignore'):
-        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
-    near = (d2 < threshold) & (ci != tj)
-    ci, tj = ci[near], tj[near]
+        dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
+        a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
+        with np.errstate(divide='ignore', invalid='ignore'):
+            d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
+        near = (d2 < threshold) & (ci != tj)
+        ci, tj = ci[near], tj[near]
     if len(ci) == 0:
         return drop
     diff = (x[:, ci] - x[:, tj]).T
-    S = np.moveaxis(P[:, :, ci] + P[:, :, tj], -1, 0)
+    S = (P[:, :, ci] + P[:, :, tj]).transpose(2, 0, 1)
     full = np.linalg.solve(S, diff[..., None])[..., 0]
     dup = np.einsum('ki,ki->k', diff, full) < threshold
     ci, tj = ci[dup], tj[dup]
@@ -203,6 +204,20 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     c_wins = (cc & ~ct) | ((cc == ct) & (ids[ci] < ids[tj]))
     drop[np.where(c_wins, tj, ci)] = True
     return drop
+
+
+def _near_grid(x: np.ndarray, P: np.ndarray, conf: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (confirmed track ``ci``, other track ``tj``) within ``threshold`` on position alone,
+    tested on the full ``(len(conf), T)`` grid; ordered by ``ci``, then ``tj``."""
+    xc, yc = x[0, conf, None], x[1, conf, None]
+    dx, dy = x[0] - xc, x[1] - yc
+    a, b, c = P[0, 0] + P[0, 0, conf, None], P[0, 1] + P[0, 1, conf, None], P[1, 1] + P[1, 1, conf, None]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
+    near = d2 < threshold
+    near[np.arange(len(conf)), conf] = False
+    rows, tj = np.nonzero(near)
+    return conf[rows], tj
 
 
 def excess_tracks(existence: np.ndarray, confirmed: np.ndarray, max_tracks: int) -> np.ndarray:
