@@ -107,10 +107,11 @@ def one_point_initiation(z: np.ndarray, R: np.ndarray, speed_max: float, n_modes
 
 
 def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarray,
-                        tracks: np.ndarray) -> np.ndarray:
-    """Mask of measurements that no track in the mask ``tracks`` validated (these may start tracks)."""
+                        tracks: np.ndarray | None = None) -> np.ndarray:
+    """Mask of measurements that no track in the mask ``tracks`` (None: any track) validated
+    (these may start tracks)."""
     used = np.zeros(n_meas, dtype=bool)
-    used[pair_meas[tracks[pair_track]]] = True
+    used[pair_meas if tracks is None else pair_meas[tracks[pair_track]]] = True
     return ~used
 
 

@@ -233,7 +233,7 @@ class ImmIpdaTracker:
             if rep.reset:
                 self.reset()
         keep, rep.rejected = check_measurements(z, R, rho)
-        if not keep.all():
+        if rep.rejected:
             z, R, rho = z[keep], R[keep], rho[keep]
 
         pair_track = pair_meas = np.zeros(0, dtype=np.intp)
@@ -245,11 +245,12 @@ class ImmIpdaTracker:
             with np.errstate(over='ignore', invalid='ignore'):
                 self._manage(rep, t, coverage)
             alive = self._alive
-            # Pairs of surviving tracks, re-indexed (used to find measurements of confirmed tracks).
-            new_index = np.cumsum(alive) - 1
+            # Pairs of surviving tracks (re-indexed when measurements of confirmed tracks are sought).
             sel = alive[pair_track]
-            pair_track, pair_meas = new_index[pair_track[sel]], pair_meas[sel]
-        exclude = self._confirmed if cfg.init.exclude == 'confirmed' else np.ones(len(self._ids), dtype=bool)
+            pair_meas = pair_meas[sel]
+            if cfg.init.exclude == 'confirmed':
+                pair_track = (np.cumsum(alive) - 1)[pair_track[sel]]
+        exclude = self._confirmed if cfg.init.exclude == 'confirmed' else None
         unused = unused_measurements(len(z), pair_track, pair_meas, exclude)
         born = birth_measurements(unused, pair_meas, rho, cfg.init.max_per_scan)
         self._initiate(z[born], R[born])
