@@ -109,7 +109,7 @@ class BoxSearch:
         if self.kind == 'all':
             return np.repeat(np.arange(n_tracks), n_meas), np.tile(np.arange(n_meas), n_tracks)
         if self.kind == 'dense':
-            track, meas = np.nonzero(_inside(lo, hi, z))
+            track, meas = _inside(lo, hi, z).nonzero()
             return track, meas
         order, tr, first, count = self._search()
         track = np.repeat(tr, count)
@@ -206,10 +206,10 @@ class Innovations:
 
     def select(self, keep: np.ndarray) -> 'Innovations':
         """The statistics of the pairs ``keep`` (indices, or a ``(P,)`` bool mask)."""
-        idx = np.flatnonzero(keep) if keep.dtype == bool else keep
-        return Innovations(nu=np.take(self.nu, idx, axis=-1), s_inv=np.take(self.s_inv, idx, axis=-1),
-                           w=np.take(self.w, idx, axis=-1), d2=np.take(self.d2, idx, axis=-1),
-                           det=np.take(self.det, idx, axis=-1))
+        idx = keep.nonzero()[0] if keep.dtype == bool else keep
+        return Innovations(nu=self.nu.take(idx, axis=-1), s_inv=self.s_inv.take(idx, axis=-1),
+                           w=self.w.take(idx, axis=-1), d2=self.d2.take(idx, axis=-1),
+                           det=self.det.take(idx, axis=-1))
 
 
 def gaussian_density(d2: np.ndarray, det: np.ndarray, dim: int) -> np.ndarray:

@@ -83,7 +83,10 @@ def segment_sum(values: np.ndarray, segment: np.ndarray, n: int) -> np.ndarray:
         return np.zeros((k, n))
     if p <= _REDUCEAT_MAX_PAIRS:
         out = np.zeros((n, k))
-        starts = np.flatnonzero(np.concatenate(([True], segment[1:] != segment[:-1])))
+        first = np.empty(p, dtype=bool)                     # a segment's first pair
+        first[0] = True
+        np.not_equal(segment[1:], segment[:-1], out=first[1:])
+        starts = first.nonzero()[0]
         out[segment[starts]] = np.add.reduceat(values.T, starts, axis=0)
         return out.T
     return np.stack([np.bincount(segment, weights=v, minlength=n) for v in values])
@@ -107,7 +110,7 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     """
     n, n_modes, n_tracks = x_pred.shape
     d = innov.nu.shape[0]
-    if len(track) > 1 and np.any(track[1:] < track[:-1]):
+    if len(track) > 1 and (track[1:] < track[:-1]).any():
         raise TrackingInputError('ipda_update: pairs must be sorted by track')
     pdpg = p_detect * p_gate
     # eq. (28) per mode (zero outside the mode's gate), divided by rho_i (eqs. 32-33).
@@ -121,7 +124,7 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     sums = sums.reshape(len(vals), n_modes, n_tracks)
 
     lam_mode = (1.0 - pdpg) + pdpg * sums[0]                        # eq. (33), per mode
-    lam = np.sum(mu_pred * lam_mode, axis=0)                        # eq. (33)
+    lam = (mu_pred * lam_mode).sum(axis=0)                          # eq. (33)
     if pdpg < 1.0:                                                  # then every Lambda >= 1 - P_D P_G > 0
         mu = mu_pred * lam_mode / lam                               # eqs. (30)-(31)
         coef = pdpg / lam_mode                                      # beta^m_i = coef p^m_i / rho_i

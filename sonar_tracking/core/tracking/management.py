@@ -126,7 +126,7 @@ def birth_measurements(unused: np.ndarray, validated: np.ndarray, rho: np.ndarra
     scan's validated pairs (any track), ``rho (N,)`` clutter densities. The order of preference
     is in the module docstring.
     """
-    idx = np.flatnonzero(unused)
+    idx = unused.nonzero()[0]
     if len(idx) <= budget:
         return idx
     seen = np.zeros(len(unused), dtype=bool)
@@ -165,7 +165,7 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     """
     n = x.shape[1]
     drop = np.zeros(n, dtype=bool)
-    conf = np.flatnonzero(confirmed)
+    conf = confirmed.nonzero()[0]
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
     if len(conf) * n <= _DENSE_DUPLICATES:
@@ -217,7 +217,7 @@ def _near_grid(x: np.ndarray, P: np.ndarray, conf: np.ndarray, threshold: float)
         d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
     near = d2 < threshold
     near[np.arange(len(conf)), conf] = False
-    rows, tj = np.nonzero(near)
+    rows, tj = near.nonzero()
     return conf[rows], tj
 
 

@@ -46,7 +46,7 @@ def update_existence(p_pred: np.ndarray, lam: np.ndarray) -> np.ndarray:
     """
     num = p_pred * lam
     den = (1.0 - p_pred) + num
-    if np.all(den > 0.0):
+    if (den > 0.0).all():
         out = num / den
     else:
         with np.errstate(invalid='ignore', divide='ignore'):

@@ -352,7 +352,7 @@ class ImmIpdaTracker:
         major = 0.5 * (pxx + pyy) + np.sqrt(0.25 * (pxx - pyy) ** 2 + pxy ** 2)    # largest eigenvalue
         # Every failure of finiteness shows in the position variance or the state sum.
         finite = np.isfinite(major + xc.sum(axis=0) + Pc.sum(axis=(0, 1)) + self._exist) \
-            & (np.diagonal(Pc).min(axis=-1) > 0)
+            & (Pc.diagonal().min(axis=-1) > 0)
         rep.dropped_numerical = int(len(finite) - np.count_nonzero(finite))
         newly = finite & ~self._confirmed & (self._exist > cfg.confirm)
         self._confirmed = self._confirmed | newly
@@ -371,7 +371,7 @@ class ImmIpdaTracker:
             # Duplicates are born while a target's first track is tentative (its measurements are
             # not yet kept from starting tracks), so they are found when a track is confirmed;
             # between confirmed tracks (targets coalescing) the check runs every scan.
-            idx = np.flatnonzero(alive if rep.confirmed else alive & self._confirmed)
+            idx = (alive if rep.confirmed else alive & self._confirmed).nonzero()[0]
             dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
                                    self._ids[idx], self.config.track.merge_threshold, self.config.track.max_pairs)
             alive[idx[dup]] = False
