@@ -82,13 +82,13 @@ def segment_sum(values: np.ndarray, segment: np.ndarray, n: int) -> np.ndarray:
     if p == 0:
         return np.zeros((k, n))
     if p <= _REDUCEAT_MAX_PAIRS:
-        out = np.zeros((n, k))
+        out = np.zeros((k, n))
         first = np.empty(p, dtype=bool)                     # a segment's first pair
         first[0] = True
         np.not_equal(segment[1:], segment[:-1], out=first[1:])
         starts = first.nonzero()[0]
-        out[segment[starts]] = np.add.reduceat(values.T, starts, axis=0)
-        return out.T
+        out[:, segment[starts]] = np.add.reduceat(values, starts, axis=1)
+        return out
     return np.stack([np.bincount(segment, weights=v, minlength=n) for v in values])
 
 
