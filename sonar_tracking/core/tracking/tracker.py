@@ -420,19 +420,47 @@ class ImmIpdaTracker:
             return out
         xc, Pc = self._xc, self._Pc
         out['track_id'] = self._ids
-        out['x'], out['y'], out['vx'], out['vy'] = xc
-        out['existence'] = self._exist
         out['confirmed'] = self._confirmed
-        for j, f in enumerate(self._mode_field):
-            out[('mode_cv', 'mode_ccw', 'mode_cw')[f]] += self._mu[j]
-        out['cov_xx'], out['cov_xy'], out['cov_yy'] = Pc[0, 0], Pc[0, 1], Pc[1, 1]
-        out['cov_vxvx'], out['cov_vyvy'] = Pc[2, 2], Pc[3, 3]
+        if self._mode_field == [0, 1, 2] and self.n == 4:
+            # The float fields in two runs (x .. existence, mode_cv .. cov_vyvy) as (T, k) views.
+            state, modes_cov = out.view(_STATE_VIEW)['v'], out.view(_MODES_COV_VIEW)['v']
+            state[:, :4] = xc.T
+            state[:, 4] = self._exist
+            modes_cov[:, :3] = self._mu.T
+            modes_cov[:, 3:] = Pc.reshape(16, -1)[_COV_ENTRIES].T
+        else:
+            out['x'], out['y'], out['vx'], out['vy'] = xc
+            out['existence'] = self._exist
+            for j, f in enumerate(self._mode_field):
+                out[('mode_cv', 'mode_ccw', 'mode_cw')[f]] += self._mu[j]
+            out['cov_xx'], out['cov_xy'], out['cov_yy'] = Pc[0, 0], Pc[0, 1], Pc[1, 1]
+            out['cov_vxvx'], out['cov_vyvy'] = Pc[2, 2], Pc[3, 3]
         out.flags.writeable = False         # handed out without a copy; the tracker keeps it as is
         return out
 
     def _fill_counts(self, rep: StepReport) -> None:
         rep.n_tracks = len(self._ids)
         rep.n_confirmed = int(self._confirmed.sum())
+
+
+def _run_view(first: str, count: int) -> np.dtype:
+    """A dtype viewing ``count`` consecutive float64 fields of ``TRACK_DTYPE`` from ``first`` as one
+    ``(count,)`` field ``v`` (checked against the record layout)."""
+    names = TRACK_DTYPE.names
+    start = names.index(first)
+    offset = TRACK_DTYPE.fields[first][1]
+    for k, name in enumerate(names[start:start + count]):
+        if TRACK_DTYPE.fields[name] != (np.dtype('<f8'), offset + 8 * k):
+            raise AssertionError(f'TRACK_DTYPE fields from {first} are not {count} consecutive float64')
+    return np.dtype({'names': ['v'], 'formats': [('<f8', (count,))], 'offsets': [offset],
+                     'itemsize': TRACK_DTYPE.itemsize})
+
+
+# Record fields x, y, vx, vy, existence and mode_cv, mode_ccw, mode_cw, cov_xx, cov_xy, cov_yy,
+# cov_vxvx, cov_vyvy, and the entries of the flattened 4 x 4 covariance the latter five take.
+_STATE_VIEW = _run_view('x', 5)
+_MODES_COV_VIEW = _run_view('mode_cv', 8)
+_COV_ENTRIES = np.array([0, 1, 5, 10, 15])
 
 
 def _chunk_bounds(counts: np.ndarray, limit: int) -> list[int]:
