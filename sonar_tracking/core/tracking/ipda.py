@@ -124,15 +124,16 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     sums = sums.reshape(len(vals), n_modes, n_tracks)
 
     lam_mode = (1.0 - pdpg) + pdpg * sums[0]                        # eq. (33), per mode
-    lam = (mu_pred * lam_mode).sum(axis=0)                          # eq. (33)
+    weighted = mu_pred * lam_mode
+    lam = weighted.sum(axis=0)                                      # eq. (33)
     if pdpg < 1.0:                                                  # then every Lambda >= 1 - P_D P_G > 0
-        mu = mu_pred * lam_mode / lam                               # eqs. (30)-(31)
+        mu = weighted / lam                                         # eqs. (30)-(31)
         coef = pdpg / lam_mode                                      # beta^m_i = coef p^m_i / rho_i
     else:
         # P_D P_G = 1: a mode with nothing in its gate has Lambda^m = 0 and no posterior; it
         # keeps its prediction (its probability is 0). With Lambda = 0 the track cannot exist.
         ok = lam > 0.0
-        mu = np.where(ok, mu_pred * lam_mode / np.where(ok, lam, 1.0), mu_pred)
+        mu = np.where(ok, weighted / np.where(ok, lam, 1.0), mu_pred)
         pos = lam_mode > 0.0
         coef = np.where(pos, pdpg / np.where(pos, lam_mode, 1.0), 0.0)
     w_bar = coef * sums[1:1 + d]

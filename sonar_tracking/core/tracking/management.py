@@ -101,8 +101,8 @@ def one_point_initiation(z: np.ndarray, R: np.ndarray, speed_max: float, n_modes
     x[:d] = z.T[:, None, :]
     P = np.zeros((2 * d, 2 * d, n_modes, k))
     P[:d, :d] = R.transpose(1, 2, 0)[:, :, None, :]
-    idx = np.arange(d, 2 * d)
-    P[idx, idx] = speed_max ** 2 / 3.0
+    for i in range(d, 2 * d):
+        P[i, i] = speed_max ** 2 / 3.0
     return x, P
 
 

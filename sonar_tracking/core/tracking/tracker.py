@@ -389,12 +389,12 @@ class ImmIpdaTracker:
         self._ids = np.concatenate((self._ids, self._new_ids(k)))
         self._x = np.concatenate((self._x, x), axis=-1)
         self._P = np.concatenate((self._P, P), axis=-1)
-        self._mu = np.concatenate((self._mu, np.full((m, k), 1.0 / m)), axis=-1)
-        self._exist = np.concatenate((self._exist, np.full(k, self.config.existence.initial)))
+        self._mu = np.concatenate((self._mu, _filled((m, k), 1.0 / m)), axis=-1)
+        self._exist = np.concatenate((self._exist, _filled(k, self.config.existence.initial)))
         self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
         self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
         self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
-        self._outside_since = np.concatenate((self._outside_since, np.full(k, np.nan)))
+        self._outside_since = np.concatenate((self._outside_since, _filled(k, np.nan)))
 
     def _new_ids(self, k: int) -> np.ndarray:
         if self._next_id + k <= _ID_SPACE and not self._wrapped:
@@ -441,6 +441,13 @@ class ImmIpdaTracker:
     def _fill_counts(self, rep: StepReport) -> None:
         rep.n_tracks = len(self._ids)
         rep.n_confirmed = int(self._confirmed.sum())
+
+
+def _filled(shape, value: float) -> np.ndarray:
+    """``np.full(shape, value)`` without its Python-level overhead."""
+    out = np.empty(shape)
+    out.fill(value)
+    return out
 
 
 def _run_view(first: str, count: int) -> np.dtype:
