@@ -136,8 +136,10 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
         mu = np.where(ok, weighted / np.where(ok, lam, 1.0), mu_pred)
         pos = lam_mode > 0.0
         coef = np.where(pos, pdpg / np.where(pos, lam_mode, 1.0), 0.0)
-    w_bar = coef * sums[1:1 + d]
-    A_upper = coef * sums[1 + d:] - w_bar[iu] * w_bar[ju]
+    scaled = coef * sums[1:]                                        # w_bar, then A's sum term
+    w_bar = scaled[:d]
+    A_upper = scaled[d:]
+    A_upper -= w_bar[iu] * w_bar[ju]
     A = A_upper[sym]                                               # (d, d, M, T)
     # x^m = x + P H^T w_bar and P^m = P + (P H^T) A (P H^T)^T; P H^T = first d columns of P.
     pht = P_pred[:, :d]

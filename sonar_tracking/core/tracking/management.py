@@ -210,9 +210,10 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
 def _near_grid(x: np.ndarray, P: np.ndarray, conf: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
     """Pairs (confirmed track ``ci``, other track ``tj``) within ``threshold`` on position alone,
     tested on the full ``(len(conf), T)`` grid; ordered by ``ci``, then ``tj``."""
-    xc, yc = x[0, conf, None], x[1, conf, None]
-    dx, dy = x[0] - xc, x[1] - yc
-    a, b, c = P[0, 0] + P[0, 0, conf, None], P[0, 1] + P[0, 1, conf, None], P[1, 1] + P[1, 1, conf, None]
+    xc = x[:2, conf, None]                                  # (2, C, 1)
+    Pc = P[:2, :2, conf, None]                              # (2, 2, C, 1)
+    dx, dy = x[0] - xc[0], x[1] - xc[1]
+    a, b, c = P[0, 0] + Pc[0, 0], P[0, 1] + Pc[0, 1], P[1, 1] + Pc[1, 1]
     with np.errstate(divide='ignore', invalid='ignore'):
         d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
     near = d2 < threshold
