@@ -165,7 +165,9 @@ class ImmIpdaTracker:
         self._confirmed = np.zeros(0, dtype=bool)
         self._xc = np.zeros((n, 0))
         self._Pc = np.zeros((n, n, 0))
-        self._outside_since = np.zeros(0)          # time a track's estimate left the coverage; NaN inside
+        # Time a track's estimate left the coverage, NaN inside; None while no scan had a coverage
+        # (every track inside as far as anyone knows: all NaN).
+        self._outside_since: np.ndarray | None = None
         self._t: float | None = None
         self._output = np.zeros(0, TRACK_DTYPE)
 
@@ -343,7 +345,8 @@ class ImmIpdaTracker:
         self._ids, self._exist, self._confirmed = self._ids[keep], self._exist[keep], self._confirmed[keep]
         self._x, self._P, self._mu = self._x[..., keep], self._P[..., keep], self._mu[:, keep]
         self._xc, self._Pc = self._xc[:, keep], self._Pc[..., keep]
-        self._outside_since = self._outside_since[keep]
+        if self._outside_since is not None:
+            self._outside_since = self._outside_since[keep]
 
     def _manage(self, rep: StepReport, t: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
@@ -361,7 +364,8 @@ class ImmIpdaTracker:
         rep.terminated = int(np.count_nonzero(finite & ~alive))
         if coverage is not None:
             inside = coverage.contains(xc[:2])
-            since = np.where(inside, np.nan, np.where(np.isnan(self._outside_since), t, self._outside_since))
+            before = self._outside_since if self._outside_since is not None else _filled(len(inside), np.nan)
+            since = np.where(inside, np.nan, np.where(np.isnan(before), t, before))
             self._outside_since = since
             gone = alive & (t - since >= self.config.track.outside_time)    # NaN (inside) compares False
             alive &= ~gone
@@ -394,7 +398,8 @@ class ImmIpdaTracker:
         self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
         self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
         self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
-        self._outside_since = np.concatenate((self._outside_since, _filled(k, np.nan)))
+        if self._outside_since is not None:
+            self._outside_since = np.concatenate((self._outside_since, _filled(k, np.nan)))
 
     def _new_ids(self, k: int) -> np.ndarray:
         if self._next_id + k <= _ID_SPACE and not self._wrapped:
@@ -440,7 +445,7 @@ class ImmIpdaTracker:
 
     def _fill_counts(self, rep: StepReport) -> None:
         rep.n_tracks = len(self._ids)
-        rep.n_confirmed = int(self._confirmed.sum())
+        rep.n_confirmed = int(np.count_nonzero(self._confirmed))
 
 
 def _filled(shape, value: float) -> np.ndarray:
