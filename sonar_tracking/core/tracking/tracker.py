@@ -286,9 +286,9 @@ class ImmIpdaTracker:
 
         # One contiguous gather per side: [H x, H P H^T] per track and [z, R] per measurement.
         track_side = np.concatenate((x_pred[:d], P_pred[:d, :d].reshape(d * d, *x_pred.shape[1:])))
-        diag = np.arange(d)
-        r_max = R[:, diag, diag].max(axis=0) if len(z) else np.zeros(d)
-        lo, hi = gate_boxes(track_side[:d], track_side[d + diag * (d + 1)], r_max, self.gamma)
+        # Diagonals of R and of H P H^T (rows d, 2d + 1, ... of track_side) as strided views.
+        r_max = R.reshape(len(z), d * d)[:, ::d + 1].max(axis=0) if len(z) else np.zeros(d)
+        lo, hi = gate_boxes(track_side[:d], track_side[d::d + 1], r_max, self.gamma)
         n_tracks = len(self._ids)
         bounds = [0, n_tracks]
         search = BoxSearch(lo, hi, z)
@@ -354,8 +354,10 @@ class ImmIpdaTracker:
         pxx, pxy, pyy = Pc[0, 0], Pc[0, 1], Pc[1, 1]
         major = 0.5 * (pxx + pyy) + np.sqrt(0.25 * (pxx - pyy) ** 2 + pxy ** 2)    # largest eigenvalue
         # Every failure of finiteness shows in the position variance or the state sum.
-        finite = np.isfinite(major + xc.sum(axis=0) + Pc.sum(axis=(0, 1)) + self._exist) \
-            & (Pc.diagonal().min(axis=-1) > 0)
+        var_min = Pc[0, 0]
+        for i in range(1, len(Pc)):
+            var_min = np.minimum(var_min, Pc[i, i])
+        finite = np.isfinite(major + xc.sum(axis=0) + Pc.sum(axis=(0, 1)) + self._exist) & (var_min > 0)
         rep.dropped_numerical = int(len(finite) - np.count_nonzero(finite))
         newly = finite & ~self._confirmed & (self._exist > cfg.confirm)
         self._confirmed = self._confirmed | newly
