@@ -342,11 +342,12 @@ class ImmIpdaTracker:
 
     def _keep(self, keep: np.ndarray) -> None:
         """Keep only the tracks ``keep`` (bool mask) in every per-track array."""
-        self._ids, self._exist, self._confirmed = self._ids[keep], self._exist[keep], self._confirmed[keep]
-        self._x, self._P, self._mu = self._x[..., keep], self._P[..., keep], self._mu[:, keep]
-        self._xc, self._Pc = self._xc[:, keep], self._Pc[..., keep]
+        idx = keep.nonzero()[0]          # converted once, then one take per array
+        self._ids, self._exist, self._confirmed = self._ids.take(idx), self._exist.take(idx), self._confirmed.take(idx)
+        self._x, self._P, self._mu = self._x.take(idx, axis=-1), self._P.take(idx, axis=-1), self._mu.take(idx, axis=-1)
+        self._xc, self._Pc = self._xc.take(idx, axis=-1), self._Pc.take(idx, axis=-1)
         if self._outside_since is not None:
-            self._outside_since = self._outside_since[keep]
+            self._outside_since = self._outside_since.take(idx)
 
     def _manage(self, rep: StepReport, t: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
@@ -378,8 +379,9 @@ class ImmIpdaTracker:
             # not yet kept from starting tracks), so they are found when a track is confirmed;
             # between confirmed tracks (targets coalescing) the check runs every scan.
             idx = (alive if rep.confirmed else alive & self._confirmed).nonzero()[0]
-            dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
-                                   self._ids[idx], self.config.track.merge_threshold, self.config.track.max_pairs)
+            dup = duplicate_tracks(xc.take(idx, axis=-1), Pc.take(idx, axis=-1), self._exist.take(idx),
+                                   self._confirmed.take(idx), self._ids.take(idx), self.config.track.merge_threshold,
+                                   self.config.track.max_pairs)
             alive[idx[dup]] = False
             rep.merged = int(np.count_nonzero(dup))
         self._alive = alive
