@@ -34,6 +34,9 @@ def predict_existence(p: np.ndarray, survival: float, birth: float = 0.0) -> np.
 
     ``survival = P(chi_k | chi_{k-1})``, ``birth = P(chi_k | not chi_{k-1})``.
     """
+    if birth == 0.0:
+        # The birth term is exactly +0 for p in [0, 1] (and NaN stays NaN): skip it.
+        return survival * p
     return survival * p + birth * (1.0 - p)
 
 
