@@ -70,6 +70,8 @@ nearby pairs, not confirmed x all tracks.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from .gating import BoxSearch
@@ -99,11 +101,19 @@ def one_point_initiation(z: np.ndarray, R: np.ndarray, speed_max: float, n_modes
     k, d = z.shape
     x = np.zeros((2 * d, n_modes, k))
     x[:d] = z.T[:, None, :]
-    P = np.zeros((2 * d, 2 * d, n_modes, k))
+    P = _initial_template(d, float(speed_max), n_modes).repeat(k, axis=-1)
     P[:d, :d] = R.transpose(1, 2, 0)[:, :, None, :]
+    return x, P
+
+
+@lru_cache(maxsize=8)
+def _initial_template(d: int, speed_max: float, n_modes: int) -> np.ndarray:
+    """``(2d, 2d, M, 1)`` read-only: zero, but ``speed_max^2 / 3`` on the velocity diagonal."""
+    P = np.zeros((2 * d, 2 * d, n_modes, 1))
     for i in range(d, 2 * d):
         P[i, i] = speed_max ** 2 / 3.0
-    return x, P
+    P.flags.writeable = False
+    return P
 
 
 def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarray,
