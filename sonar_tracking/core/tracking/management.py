@@ -209,6 +209,8 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     S = (P[:, :, ci] + P[:, :, tj]).transpose(2, 0, 1)
     full = np.linalg.solve(S, diff[..., None])[..., 0]
     dup = np.einsum('ki,ki->k', diff, full) < threshold
+    if not dup.any():
+        return drop
     ci, tj = ci[dup], tj[dup]
     # Keep the confirmed track, and of two confirmed ones the older (its id stays on the target).
     cc, ct = confirmed[ci], confirmed[tj]

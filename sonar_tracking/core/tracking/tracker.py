@@ -382,8 +382,9 @@ class ImmIpdaTracker:
             dup = duplicate_tracks(xc.take(idx, axis=-1), Pc.take(idx, axis=-1), self._exist.take(idx),
                                    self._confirmed.take(idx), self._ids.take(idx), self.config.track.merge_threshold,
                                    self.config.track.max_pairs)
-            alive[idx[dup]] = False
             rep.merged = int(np.count_nonzero(dup))
+            if rep.merged:
+                alive[idx[dup]] = False
         self._alive = alive
         if not alive.all():
             self._keep(alive)
