@@ -67,7 +67,7 @@ def gate_boxes(centres: np.ndarray, hph_diag: np.ndarray, r_diag_max: np.ndarray
         shape = (centres.shape[2], centres.shape[0])
         return np.full(shape, -np.inf), np.full(shape, np.inf)
     half = np.sqrt(gamma * (hph_diag + np.asarray(r_diag_max)[:, None, None]))
-    return (centres - half).min(axis=1).T, (centres + half).max(axis=1).T
+    return np.minimum.reduce(centres - half, axis=1).T, np.maximum.reduce(centres + half, axis=1).T
 
 
 # Up to this many track-measurement combinations, testing all of them beats the strip search.
@@ -88,8 +88,9 @@ class BoxSearch:
     def __init__(self, lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> None:
         self.lo, self.hi, self.z = lo, hi, z
         n_tracks, n_meas = lo.shape[0], z.shape[0]
+        finite = np.count_nonzero(np.isfinite(lo)) + np.count_nonzero(np.isfinite(hi)) == lo.size + hi.size
         self.kind = ('empty' if n_tracks == 0 or n_meas == 0 else
-                     'all' if not (np.isfinite(lo).all() and np.isfinite(hi).all()) else   # no gate: every pair
+                     'all' if not finite else   # no gate: every pair
                      'dense' if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS else 'strips')
         self._strips: tuple | None = None
 

@@ -110,7 +110,7 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     """
     n, n_modes, n_tracks = x_pred.shape
     d = innov.nu.shape[0]
-    if len(track) > 1 and (track[1:] < track[:-1]).any():
+    if len(track) > 1 and np.count_nonzero(track[1:] < track[:-1]):
         raise TrackingInputError('ipda_update: pairs must be sorted by track')
     pdpg = p_detect * p_gate
     # eq. (28) per mode (zero outside the mode's gate), divided by rho_i (eqs. 32-33).
@@ -125,7 +125,7 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
 
     lam_mode = (1.0 - pdpg) + pdpg * sums[0]                        # eq. (33), per mode
     weighted = mu_pred * lam_mode
-    lam = weighted.sum(axis=0)                                      # eq. (33)
+    lam = np.add.reduce(weighted, axis=0)                                 # eq. (33)
     if pdpg < 1.0:                                                  # then every Lambda >= 1 - P_D P_G > 0
         mu = weighted / lam                                         # eqs. (30)-(31)
         coef = pdpg / lam_mode                                      # beta^m_i = coef p^m_i / rho_i

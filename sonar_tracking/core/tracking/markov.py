@@ -49,7 +49,7 @@ def update_existence(p_pred: np.ndarray, lam: np.ndarray) -> np.ndarray:
     """
     num = p_pred * lam
     den = (1.0 - p_pred) + num
-    if (den > 0.0).all():
+    if np.count_nonzero(den > 0.0) == den.size:
         out = num / den
     else:
         with np.errstate(invalid='ignore', divide='ignore'):

@@ -116,4 +116,4 @@ def _all_usable(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
     if not (abs(b1 - b2) <= 1e-9 * max(abs(a), abs(c)) and a > 0 and a * c - b1 * b2 > 0):
         return False
     # A finite sum means every entry is finite (an overflow only sends the scan to the full check).
-    return math.isfinite(z.sum() + rho.sum()) and rho.min() > 0
+    return math.isfinite(np.add.reduce(z, axis=None) + np.add.reduce(rho)) and np.minimum.reduce(rho) > 0

@@ -287,7 +287,7 @@ class ImmIpdaTracker:
         # One contiguous gather per side: [H x, H P H^T] per track and [z, R] per measurement.
         track_side = np.concatenate((x_pred[:d], P_pred[:d, :d].reshape(d * d, *x_pred.shape[1:])))
         # Diagonals of R and of H P H^T (rows d, 2d + 1, ... of track_side) as strided views.
-        r_max = R.reshape(len(z), d * d)[:, ::d + 1].max(axis=0) if len(z) else np.zeros(d)
+        r_max = np.maximum.reduce(R.reshape(len(z), d * d)[:, ::d + 1], axis=0) if len(z) else np.zeros(d)
         lo, hi = gate_boxes(track_side[:d], track_side[d::d + 1], r_max, self.gamma)
         n_tracks = len(self._ids)
         bounds = [0, n_tracks]
@@ -358,7 +358,9 @@ class ImmIpdaTracker:
         var_min = Pc[0, 0]
         for i in range(1, len(Pc)):
             var_min = np.minimum(var_min, Pc[i, i])
-        finite = np.isfinite(major + xc.sum(axis=0) + Pc.sum(axis=(0, 1)) + self._exist) & (var_min > 0)
+        # ufunc reductions: the ndarray methods forward to Python (numpy._core._methods), same result.
+        finite = np.isfinite(major + np.add.reduce(xc, axis=0) + np.add.reduce(Pc, axis=(0, 1)) + self._exist)
+        finite &= var_min > 0
         rep.dropped_numerical = int(len(finite) - np.count_nonzero(finite))
         newly = finite & ~self._confirmed & (self._exist > cfg.confirm)
         self._confirmed = self._confirmed | newly
@@ -386,7 +388,7 @@ class ImmIpdaTracker:
             if rep.merged:
                 alive[idx[dup]] = False
         self._alive = alive
-        if not alive.all():
+        if np.count_nonzero(alive) < len(alive):
             self._keep(alive)
 
     def _initiate(self, z: np.ndarray, R: np.ndarray) -> None:
