@@ -383,9 +383,10 @@ class ImmIpdaTracker:
             # not yet kept from starting tracks), so they are found when a track is confirmed;
             # between confirmed tracks (targets coalescing) the check runs every scan.
             idx = (alive if rep.confirmed else alive & self._confirmed).nonzero()[0]
-            dup = duplicate_tracks(xc.take(idx, axis=-1), Pc.take(idx, axis=-1), self._exist.take(idx),
-                                   self._confirmed.take(idx), self._ids.take(idx), self.config.track.merge_threshold,
-                                   self.config.track.max_pairs)
+            # Fancy indexing as before (not take): the same memory layout, so the 4-D test's einsum
+            # sums in the same order (see _keep).
+            dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
+                                   self._ids[idx], self.config.track.merge_threshold, self.config.track.max_pairs)
             rep.merged = int(np.count_nonzero(dup))
             if rep.merged:
                 alive[idx[dup]] = False
