@@ -21,7 +21,7 @@ distribution with d degrees of freedom (:func:`gate_threshold`, :func:`gate_prob
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.special import gammainc, gammaincinv
@@ -67,7 +67,7 @@ def gate_boxes(centres: np.ndarray, hph_diag: np.ndarray, r_diag_max: np.ndarray
         shape = (centres.shape[2], centres.shape[0])
         return np.full(shape, -np.inf), np.full(shape, np.inf)
     half = np.sqrt(gamma * (hph_diag + np.asarray(r_diag_max)[:, None, None]))
-    return (centres - half).min(axis=1).T, (centres + half).max(axis=1).T
+    return np.minimum.reduce(centres - half, axis=1).T, np.maximum.reduce(centres + half, axis=1).T
 
 
 # Up to this many track-measurement combinations, testing all of them beats the strip search.
@@ -88,8 +88,9 @@ class BoxSearch:
     def __init__(self, lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> None:
         self.lo, self.hi, self.z = lo, hi, z
         n_tracks, n_meas = lo.shape[0], z.shape[0]
+        finite = np.count_nonzero(np.isfinite(lo)) + np.count_nonzero(np.isfinite(hi)) == lo.size + hi.size
         self.kind = ('empty' if n_tracks == 0 or n_meas == 0 else
-                     'all' if not (np.isfinite(lo).all() and np.isfinite(hi).all()) else   # no gate: every pair
+                     'all' if not finite else   # no gate: every pair
                      'dense' if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS else 'strips')
         self._strips: tuple | None = None
 
@@ -109,7 +110,7 @@ class BoxSearch:
         if self.kind == 'all':
             return np.repeat(np.arange(n_tracks), n_meas), np.tile(np.arange(n_meas), n_tracks)
         if self.kind == 'dense':
-            track, meas = np.nonzero(_inside(lo, hi, z))
+            track, meas = _inside(lo, hi, z).nonzero()
             return track, meas
         order, tr, first, count = self._search()
         track = np.repeat(tr, count)
@@ -199,6 +200,15 @@ class Innovations:
     w: np.ndarray
     d2: np.ndarray
     det: np.ndarray
+    #: ``(d + d^2 + d + 2, M, P)`` rows holding all five above (views of it), or None.
+    buffer: np.ndarray | None = field(default=None, repr=False, compare=False)
+
+    @staticmethod
+    def from_buffer(buffer: np.ndarray, d: int) -> 'Innovations':
+        """The statistics as views of one array whose rows are ``nu, s_inv, w, d2, det`` (see ``buffer``)."""
+        e = 2 * d + d * d
+        return Innovations(nu=buffer[:d], s_inv=buffer[d:d + d * d].reshape((d, d) + buffer.shape[1:]),
+                           w=buffer[d + d * d:e], d2=buffer[e], det=buffer[e + 1], buffer=buffer)
 
     def density(self) -> np.ndarray:
         """``N(z; H x_pred, S)`` for every mode and pair (the numerator of eq. 28)."""
@@ -206,10 +216,12 @@ class Innovations:
 
     def select(self, keep: np.ndarray) -> 'Innovations':
         """The statistics of the pairs ``keep`` (indices, or a ``(P,)`` bool mask)."""
-        idx = np.flatnonzero(keep) if keep.dtype == bool else keep
-        return Innovations(nu=np.take(self.nu, idx, axis=-1), s_inv=np.take(self.s_inv, idx, axis=-1),
-                           w=np.take(self.w, idx, axis=-1), d2=np.take(self.d2, idx, axis=-1),
-                           det=np.take(self.det, idx, axis=-1))
+        idx = keep.nonzero()[0] if keep.dtype == bool else keep
+        if self.buffer is not None:            # one gather for all five
+            return Innovations.from_buffer(self.buffer.take(idx, axis=-1), self.nu.shape[0])
+        return Innovations(nu=self.nu.take(idx, axis=-1), s_inv=self.s_inv.take(idx, axis=-1),
+                           w=self.w.take(idx, axis=-1), d2=self.d2.take(idx, axis=-1),
+                           det=self.det.take(idx, axis=-1))
 
 
 def gaussian_density(d2: np.ndarray, det: np.ndarray, dim: int) -> np.ndarray:
@@ -233,34 +245,37 @@ def innovations(z: np.ndarray, R: np.ndarray, z_pred: np.ndarray, hph: np.ndarra
     d = z.shape[0]
     if z.ndim != 2 or z_pred.shape[0] != d or z_pred.shape[-1] != z.shape[1] or R.shape[:2] != (d, d):
         raise TrackingInputError(f'innovations: z {z.shape}, R {R.shape} and z_pred {z_pred.shape} do not match')
-    nu = z[:, None, :] - z_pred
     if d == 2:
+        # All five statistics written into one array (rows nu, s_inv, w, d2, det): selecting
+        # pairs later is one gather.
+        out = Innovations.from_buffer(np.empty((10,) + z_pred.shape[1:]), 2)
+        nu, s_inv, w, d2, det = out.nu, out.s_inv, out.w, out.d2, out.det
+        np.subtract(z[:, None, :], z_pred, out=nu)
         a = hph[0, 0] + R[0, 0]
         b = hph[0, 1] + hph[1, 0]
         b += R[0, 1]
         b += R[1, 0]
         b *= 0.5
         c = hph[1, 1] + R[1, 1]
-        det = a * c
+        np.multiply(a, c, out=det)
         det -= b * b
-        s_inv = np.empty((2, 2) + a.shape)
         np.divide(c, det, out=s_inv[0, 0])
         np.divide(a, det, out=s_inv[1, 1])
         np.divide(b, det, out=s_inv[0, 1])
         np.negative(s_inv[0, 1], out=s_inv[0, 1])
         s_inv[1, 0] = s_inv[0, 1]
-        w = np.empty_like(nu)
         np.multiply(s_inv[0, 0], nu[0], out=w[0])
         w[0] += s_inv[0, 1] * nu[1]
         np.multiply(s_inv[1, 1], nu[1], out=w[1])
         w[1] += s_inv[0, 1] * nu[0]
-        d2 = nu[0] * w[0]
+        np.multiply(nu[0], w[0], out=d2)
         d2 += nu[1] * w[1]
-    else:
-        S = hph + R[:, :, None, :]
-        S = np.moveaxis(0.5 * (S + S.swapaxes(0, 1)), (0, 1), (-2, -1))     # (M, P, d, d)
-        det = np.linalg.det(S)
-        s_inv = np.moveaxis(np.linalg.inv(S), (-2, -1), (0, 1))
-        w = np.einsum('ijmp,jmp->imp', s_inv, nu)
-        d2 = np.sum(nu * w, axis=0)
+        return out
+    nu = z[:, None, :] - z_pred
+    S = hph + R[:, :, None, :]
+    S = np.moveaxis(0.5 * (S + S.swapaxes(0, 1)), (0, 1), (-2, -1))     # (M, P, d, d)
+    det = np.linalg.det(S)
+    s_inv = np.moveaxis(np.linalg.inv(S), (-2, -1), (0, 1))
+    w = np.einsum('ijmp,jmp->imp', s_inv, nu)
+    d2 = np.sum(nu * w, axis=0)
     return Innovations(nu=nu, s_inv=s_inv, w=w, d2=d2, det=det)

@@ -35,9 +35,10 @@ def interaction(mu: np.ndarray, x: np.ndarray, P: np.ndarray, pi: np.ndarray
     """
     mu_pred = pi.T @ mu                                       # eq. (20)
     ok = mu_pred > 0.0
-    safe = np.where(ok, mu_pred, 1.0)
+    all_ok = np.count_nonzero(ok) == ok.size
+    safe = mu_pred if all_ok else np.where(ok, mu_pred, 1.0)
     omega = pi.T[:, :, None] * mu[None, :, :] / safe[:, None, :]   # eq. (19): (to m, from n, T)
-    if not ok.all():
+    if not all_ok:
         eye = np.broadcast_to(np.eye(len(mu))[:, :, None], omega.shape)
         omega = np.where(ok[:, None, :], omega, eye)
     x0, P0 = moment_match(omega, x, P)                        # eqs. (17)-(18)

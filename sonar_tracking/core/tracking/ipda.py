@@ -82,10 +82,13 @@ def segment_sum(values: np.ndarray, segment: np.ndarray, n: int) -> np.ndarray:
     if p == 0:
         return np.zeros((k, n))
     if p <= _REDUCEAT_MAX_PAIRS:
-        out = np.zeros((n, k))
-        starts = np.flatnonzero(np.concatenate(([True], segment[1:] != segment[:-1])))
-        out[segment[starts]] = np.add.reduceat(values.T, starts, axis=0)
-        return out.T
+        out = np.zeros((k, n))
+        first = np.empty(p, dtype=bool)                     # a segment's first pair
+        first[0] = True
+        np.not_equal(segment[1:], segment[:-1], out=first[1:])
+        starts = first.nonzero()[0]
+        out[:, segment[starts]] = np.add.reduceat(values, starts, axis=1)
+        return out
     return np.stack([np.bincount(segment, weights=v, minlength=n) for v in values])
 
 
@@ -115,7 +118,7 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     """
     n, n_modes, n_tracks = x_pred.shape
     d = innov.nu.shape[0]
-    if len(track) > 1 and np.any(track[1:] < track[:-1]):
+    if len(track) > 1 and np.count_nonzero(track[1:] < track[:-1]):
         raise TrackingInputError('ipda_update: pairs must be sorted by track')
     pdpg = p_detect * p_gate
     a = likelihood_ratios(innov, in_gate, rho, p_gate)              # eq. (28) over rho_i (eqs. 32-33)
@@ -127,19 +130,22 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     sums = sums.reshape(len(vals), n_modes, n_tracks)
 
     lam_mode = (1.0 - pdpg) + pdpg * sums[0]                        # eq. (33), per mode
-    lam = np.sum(mu_pred * lam_mode, axis=0)                        # eq. (33)
+    weighted = mu_pred * lam_mode
+    lam = np.add.reduce(weighted, axis=0)                                 # eq. (33)
     if pdpg < 1.0:                                                  # then every Lambda >= 1 - P_D P_G > 0
-        mu = mu_pred * lam_mode / lam                               # eqs. (30)-(31)
+        mu = weighted / lam                                         # eqs. (30)-(31)
         coef = pdpg / lam_mode                                      # beta^m_i = coef p^m_i / rho_i
     else:
         # P_D P_G = 1: a mode with nothing in its gate has Lambda^m = 0 and no posterior; it
         # keeps its prediction (its probability is 0). With Lambda = 0 the track cannot exist.
         ok = lam > 0.0
-        mu = np.where(ok, mu_pred * lam_mode / np.where(ok, lam, 1.0), mu_pred)
+        mu = np.where(ok, weighted / np.where(ok, lam, 1.0), mu_pred)
         pos = lam_mode > 0.0
         coef = np.where(pos, pdpg / np.where(pos, lam_mode, 1.0), 0.0)
-    w_bar = coef * sums[1:1 + d]
-    A_upper = coef * sums[1 + d:] - w_bar[iu] * w_bar[ju]
+    scaled = coef * sums[1:]                                        # w_bar, then A's sum term
+    w_bar = scaled[:d]
+    A_upper = scaled[d:]
+    A_upper -= w_bar[iu] * w_bar[ju]
     A = A_upper[sym]                                               # (d, d, M, T)
     # x^m = x + P H^T w_bar and P^m = P + (P H^T) A (P H^T)^T; P H^T = first d columns of P.
     pht = P_pred[:, :d]

@@ -70,6 +70,8 @@ nearby pairs, not confirmed x all tracks.
 """
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 
 from .gating import BoxSearch
@@ -99,18 +101,27 @@ def one_point_initiation(z: np.ndarray, R: np.ndarray, speed_max: float, n_modes
     k, d = z.shape
     x = np.zeros((2 * d, n_modes, k))
     x[:d] = z.T[:, None, :]
-    P = np.zeros((2 * d, 2 * d, n_modes, k))
+    P = _initial_template(d, float(speed_max), n_modes).repeat(k, axis=-1)
     P[:d, :d] = R.transpose(1, 2, 0)[:, :, None, :]
-    idx = np.arange(d, 2 * d)
-    P[idx, idx] = speed_max ** 2 / 3.0
     return x, P
 
 
+@lru_cache(maxsize=8)
+def _initial_template(d: int, speed_max: float, n_modes: int) -> np.ndarray:
+    """``(2d, 2d, M, 1)`` read-only: zero, but ``speed_max^2 / 3`` on the velocity diagonal."""
+    P = np.zeros((2 * d, 2 * d, n_modes, 1))
+    for i in range(d, 2 * d):
+        P[i, i] = speed_max ** 2 / 3.0
+    P.flags.writeable = False
+    return P
+
+
 def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarray,
-                        tracks: np.ndarray) -> np.ndarray:
-    """Mask of measurements that no track in the mask ``tracks`` validated (these may start tracks)."""
+                        tracks: np.ndarray | None = None) -> np.ndarray:
+    """Mask of measurements that no track in the mask ``tracks`` (None: any track) validated
+    (these may start tracks)."""
     used = np.zeros(n_meas, dtype=bool)
-    used[pair_meas[tracks[pair_track]]] = True
+    used[pair_meas if tracks is None else pair_meas[tracks[pair_track]]] = True
     return ~used
 
 
@@ -125,7 +136,7 @@ def birth_measurements(unused: np.ndarray, validated: np.ndarray, rho: np.ndarra
     scan's validated pairs (any track), ``rho (N,)`` clutter densities. The order of preference
     is in the module docstring.
     """
-    idx = np.flatnonzero(unused)
+    idx = unused.nonzero()[0]
     if len(idx) <= budget:
         return idx
     seen = np.zeros(len(unused), dtype=bool)
@@ -164,12 +175,13 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     """
     n = x.shape[1]
     drop = np.zeros(n, dtype=bool)
-    conf = np.flatnonzero(confirmed)
+    conf = confirmed.nonzero()[0]
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
     if len(conf) * n <= _DENSE_DUPLICATES:
-        # Few tracks: the position test on every (confirmed, track) pair costs fewer numpy calls.
-        ci, tj = np.repeat(conf, n), np.tile(np.arange(n), len(conf))
+        # Few tracks: the position test on every (confirmed, track) combination at once, as a
+        # (confirmed, track) grid (fewer numpy calls than building the pairs first).
+        ci, tj = _near_grid(x, P, conf, threshold)
     else:
         pos = x[:2].T                                                       # (T, 2)
         half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
@@ -185,24 +197,41 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
                 search = BoxSearch(lo, hi, pos)
         ci, tj = search.pairs()
         ci = conf[ci]
-    dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
-    a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
-    with np.errstate(divide='ignore', invalid='ignore'):
-        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
-    near = (d2 < threshold) & (ci != tj)
-    ci, tj = ci[near], tj[near]
+        dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
+        a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
+        with np.errstate(divide='ignore', invalid='ignore'):
+            d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
+        near = (d2 < threshold) & (ci != tj)
+        ci, tj = ci[near], tj[near]
     if len(ci) == 0:
         return drop
     diff = (x[:, ci] - x[:, tj]).T
-    S = np.moveaxis(P[:, :, ci] + P[:, :, tj], -1, 0)
+    S = (P[:, :, ci] + P[:, :, tj]).transpose(2, 0, 1)
     full = np.linalg.solve(S, diff[..., None])[..., 0]
     dup = np.einsum('ki,ki->k', diff, full) < threshold
+    if not dup.any():
+        return drop
     ci, tj = ci[dup], tj[dup]
     # Keep the confirmed track, and of two confirmed ones the older (its id stays on the target).
     cc, ct = confirmed[ci], confirmed[tj]
     c_wins = (cc & ~ct) | ((cc == ct) & (ids[ci] < ids[tj]))
     drop[np.where(c_wins, tj, ci)] = True
     return drop
+
+
+def _near_grid(x: np.ndarray, P: np.ndarray, conf: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs (confirmed track ``ci``, other track ``tj``) within ``threshold`` on position alone,
+    tested on the full ``(len(conf), T)`` grid; ordered by ``ci``, then ``tj``."""
+    xc = x[:2, conf, None]                                  # (2, C, 1)
+    Pc = P[:2, :2, conf, None]                              # (2, 2, C, 1)
+    dx, dy = x[0] - xc[0], x[1] - xc[1]
+    a, b, c = P[0, 0] + Pc[0, 0], P[0, 1] + Pc[0, 1], P[1, 1] + Pc[1, 1]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
+    near = d2 < threshold
+    near[np.arange(len(conf)), conf] = False
+    rows, tj = near.nonzero()
+    return conf[rows], tj
 
 
 def excess_tracks(existence: np.ndarray, confirmed: np.ndarray, max_tracks: int) -> np.ndarray:

@@ -34,6 +34,9 @@ def predict_existence(p: np.ndarray, survival: float, birth: float = 0.0) -> np.
 
     ``survival = P(chi_k | chi_{k-1})``, ``birth = P(chi_k | not chi_{k-1})``.
     """
+    if birth == 0.0:
+        # The birth term is exactly +0 for p in [0, 1] (and NaN stays NaN): skip it.
+        return survival * p
     return survival * p + birth * (1.0 - p)
 
 
@@ -46,7 +49,7 @@ def update_existence(p_pred: np.ndarray, lam: np.ndarray) -> np.ndarray:
     """
     num = p_pred * lam
     den = (1.0 - p_pred) + num
-    if np.all(den > 0.0):
+    if np.count_nonzero(den > 0.0) == den.size:
         out = num / den
     else:
         with np.errstate(invalid='ignore', divide='ignore'):

@@ -8,6 +8,7 @@ the scan is used. Wrong shapes are a caller's bug and raise
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -70,6 +71,8 @@ def check_measurements(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> tuple[n
     2 x 2, by eigenvalues otherwise).
     """
     n, d = z.shape
+    if n and d == 2 and R.strides[0] == 0 and _all_usable(z, R[0], rho):
+        return np.ones(n, dtype=bool), []
     Rf = R.reshape(n, d * d)
     with np.errstate(invalid='ignore', over='ignore'):
         finite = np.isfinite(z).all(axis=1) & np.isfinite(Rf).all(axis=1)
@@ -101,3 +104,16 @@ def check_measurements(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> tuple[n
             reason = f'clutter density {float(rho[i])!r} must be finite and > 0'
         rejections.append(Rejection(int(i), reason))
     return keep, rejections
+
+
+def _all_usable(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
+    """True when every row passes :func:`check_measurements` and all rows share the 2 x 2 ``R``
+    (a broadcast covariance, the usual case): one matrix to check, the same tests in float64.
+    False means "not sure": the row-by-row check decides."""
+    a, b1, b2, c = R.ravel().tolist()
+    if not (math.isfinite(a) and math.isfinite(b1) and math.isfinite(b2) and math.isfinite(c)):
+        return False
+    if not (abs(b1 - b2) <= 1e-9 * max(abs(a), abs(c)) and a > 0 and a * c - b1 * b2 > 0):
+        return False
+    # A finite sum means every entry is finite (an overflow only sends the scan to the full check).
+    return math.isfinite(np.add.reduce(z, axis=None) + np.add.reduce(rho)) and np.minimum.reduce(rho) > 0

@@ -186,7 +186,9 @@ class ImmIpdaTracker:
         self._confirmed = np.zeros(0, dtype=bool)
         self._xc = np.zeros((n, 0))
         self._Pc = np.zeros((n, n, 0))
-        self._outside_since = np.zeros(0)          # time a track's estimate left the coverage; NaN inside
+        # Time a track's estimate left the coverage, NaN inside; None while no scan had a coverage
+        # (every track inside as far as anyone knows: all NaN).
+        self._outside_since: np.ndarray | None = None
         self._t: float | None = None
         self._output = np.zeros(0, TRACK_DTYPE)
 
@@ -254,7 +256,7 @@ class ImmIpdaTracker:
             if rep.reset:
                 self.reset()
         keep, rep.rejected = check_measurements(z, R, rho)
-        if not keep.all():
+        if rep.rejected:
             z, R, rho = z[keep], R[keep], rho[keep]
 
         pair_track = pair_meas = np.zeros(0, dtype=np.intp)
@@ -266,11 +268,12 @@ class ImmIpdaTracker:
             with np.errstate(over='ignore', invalid='ignore'):
                 self._manage(rep, t, coverage)
             alive = self._alive
-            # Pairs of surviving tracks, re-indexed (used to find measurements of confirmed tracks).
-            new_index = np.cumsum(alive) - 1
+            # Pairs of surviving tracks (re-indexed when measurements of confirmed tracks are sought).
             sel = alive[pair_track]
-            pair_track, pair_meas = new_index[pair_track[sel]], pair_meas[sel]
-        exclude = self._confirmed if cfg.init.exclude == 'confirmed' else np.ones(len(self._ids), dtype=bool)
+            pair_meas = pair_meas[sel]
+            if cfg.init.exclude == 'confirmed':
+                pair_track = (np.cumsum(alive) - 1)[pair_track[sel]]
+        exclude = self._confirmed if cfg.init.exclude == 'confirmed' else None
         unused = unused_measurements(len(z), pair_track, pair_meas, exclude)
         born = birth_measurements(unused, pair_meas, rho, cfg.init.max_per_scan)
         self._initiate(z[born], R[born])
@@ -304,9 +307,9 @@ class ImmIpdaTracker:
 
         # One contiguous gather per side: [H x, H P H^T] per track and [z, R] per measurement.
         track_side = np.concatenate((x_pred[:d], P_pred[:d, :d].reshape(d * d, *x_pred.shape[1:])))
-        diag = np.arange(d)
-        r_max = R[:, diag, diag].max(axis=0) if len(z) else np.zeros(d)
-        lo, hi = gate_boxes(track_side[:d], track_side[d + diag * (d + 1)], r_max, self.gamma)
+        # Diagonals of R and of H P H^T (rows d, 2d + 1, ... of track_side) as strided views.
+        r_max = np.maximum.reduce(R.reshape(len(z), d * d)[:, ::d + 1], axis=0) if len(z) else np.zeros(d)
+        lo, hi = gate_boxes(track_side[:d], track_side[d::d + 1], r_max, self.gamma)
         n_tracks = len(self._ids)
         bounds = [0, n_tracks]
         search = BoxSearch(lo, hi, z)
@@ -403,10 +406,14 @@ class ImmIpdaTracker:
 
     def _keep(self, keep: np.ndarray) -> None:
         """Keep only the tracks ``keep`` (bool mask) in every per-track array."""
+        # Boolean indexing, not take: it leaves the tracks axis outermost in memory, and the IMM
+        # mixing's three-term einsum sums in an order that follows the layout (take changed the
+        # last digit of one scenario 1 RMSE).
         self._ids, self._exist, self._confirmed = self._ids[keep], self._exist[keep], self._confirmed[keep]
         self._x, self._P, self._mu = self._x[..., keep], self._P[..., keep], self._mu[:, keep]
         self._xc, self._Pc = self._xc[:, keep], self._Pc[..., keep]
-        self._outside_since = self._outside_since[keep]
+        if self._outside_since is not None:
+            self._outside_since = self._outside_since[keep]
 
     def _manage(self, rep: StepReport, t: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
@@ -414,8 +421,12 @@ class ImmIpdaTracker:
         pxx, pxy, pyy = Pc[0, 0], Pc[0, 1], Pc[1, 1]
         major = 0.5 * (pxx + pyy) + np.sqrt(0.25 * (pxx - pyy) ** 2 + pxy ** 2)    # largest eigenvalue
         # Every failure of finiteness shows in the position variance or the state sum.
-        finite = np.isfinite(major + xc.sum(axis=0) + Pc.sum(axis=(0, 1)) + self._exist) \
-            & (np.diagonal(Pc).min(axis=-1) > 0)
+        var_min = Pc[0, 0]
+        for i in range(1, len(Pc)):
+            var_min = np.minimum(var_min, Pc[i, i])
+        # ufunc reductions: the ndarray methods forward to Python (numpy._core._methods), same result.
+        finite = np.isfinite(major + np.add.reduce(xc, axis=0) + np.add.reduce(Pc, axis=(0, 1)) + self._exist)
+        finite &= var_min > 0
         rep.dropped_numerical = int(len(finite) - np.count_nonzero(finite))
         newly = finite & ~self._confirmed & (self._exist > cfg.confirm)
         self._confirmed = self._confirmed | newly
@@ -424,7 +435,8 @@ class ImmIpdaTracker:
         rep.terminated = int(np.count_nonzero(finite & ~alive))
         if coverage is not None:
             inside = coverage.contains(xc[:2])
-            since = np.where(inside, np.nan, np.where(np.isnan(self._outside_since), t, self._outside_since))
+            before = self._outside_since if self._outside_since is not None else _filled(len(inside), np.nan)
+            since = np.where(inside, np.nan, np.where(np.isnan(before), t, before))
             self._outside_since = since
             gone = alive & (t - since >= self.config.track.outside_time)    # NaN (inside) compares False
             alive &= ~gone
@@ -434,13 +446,16 @@ class ImmIpdaTracker:
             # Duplicates are born while a target's first track is tentative (its measurements are
             # not yet kept from starting tracks), so they are found when a track is confirmed;
             # between confirmed tracks (targets coalescing) the check runs every scan.
-            idx = np.flatnonzero(alive if rep.confirmed else alive & self._confirmed)
+            idx = (alive if rep.confirmed else alive & self._confirmed).nonzero()[0]
+            # Fancy indexing as before (not take): the same memory layout, so the 4-D test's einsum
+            # sums in the same order (see _keep).
             dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
                                    self._ids[idx], self.config.track.merge_threshold, self.config.track.max_pairs)
-            alive[idx[dup]] = False
             rep.merged = int(np.count_nonzero(dup))
+            if rep.merged:
+                alive[idx[dup]] = False
         self._alive = alive
-        if not alive.all():
+        if np.count_nonzero(alive) < len(alive):
             self._keep(alive)
 
     def _initiate(self, z: np.ndarray, R: np.ndarray) -> None:
@@ -452,12 +467,13 @@ class ImmIpdaTracker:
         self._ids = np.concatenate((self._ids, self._new_ids(k)))
         self._x = np.concatenate((self._x, x), axis=-1)
         self._P = np.concatenate((self._P, P), axis=-1)
-        self._mu = np.concatenate((self._mu, np.full((m, k), 1.0 / m)), axis=-1)
-        self._exist = np.concatenate((self._exist, np.full(k, self.config.existence.initial)))
+        self._mu = np.concatenate((self._mu, _filled((m, k), 1.0 / m)), axis=-1)
+        self._exist = np.concatenate((self._exist, _filled(k, self.config.existence.initial)))
         self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
         self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
         self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
-        self._outside_since = np.concatenate((self._outside_since, np.full(k, np.nan)))
+        if self._outside_since is not None:
+            self._outside_since = np.concatenate((self._outside_since, _filled(k, np.nan)))
 
     def _new_ids(self, k: int) -> np.ndarray:
         if self._next_id + k <= _ID_SPACE and not self._wrapped:
@@ -483,19 +499,54 @@ class ImmIpdaTracker:
             return out
         xc, Pc = self._xc, self._Pc
         out['track_id'] = self._ids
-        out['x'], out['y'], out['vx'], out['vy'] = xc
-        out['existence'] = self._exist
         out['confirmed'] = self._confirmed
-        for j, f in enumerate(self._mode_field):
-            out[('mode_cv', 'mode_ccw', 'mode_cw')[f]] += self._mu[j]
-        out['cov_xx'], out['cov_xy'], out['cov_yy'] = Pc[0, 0], Pc[0, 1], Pc[1, 1]
-        out['cov_vxvx'], out['cov_vyvy'] = Pc[2, 2], Pc[3, 3]
+        if self._mode_field == [0, 1, 2] and self.n == 4:
+            # The float fields in two runs (x .. existence, mode_cv .. cov_vyvy) as (T, k) views.
+            state, modes_cov = out.view(_STATE_VIEW)['v'], out.view(_MODES_COV_VIEW)['v']
+            state[:, :4] = xc.T
+            state[:, 4] = self._exist
+            modes_cov[:, :3] = self._mu.T
+            modes_cov[:, 3:] = Pc.reshape(16, -1)[_COV_ENTRIES].T
+        else:
+            out['x'], out['y'], out['vx'], out['vy'] = xc
+            out['existence'] = self._exist
+            for j, f in enumerate(self._mode_field):
+                out[('mode_cv', 'mode_ccw', 'mode_cw')[f]] += self._mu[j]
+            out['cov_xx'], out['cov_xy'], out['cov_yy'] = Pc[0, 0], Pc[0, 1], Pc[1, 1]
+            out['cov_vxvx'], out['cov_vyvy'] = Pc[2, 2], Pc[3, 3]
         out.flags.writeable = False         # handed out without a copy; the tracker keeps it as is
         return out
 
     def _fill_counts(self, rep: StepReport) -> None:
         rep.n_tracks = len(self._ids)
-        rep.n_confirmed = int(self._confirmed.sum())
+        rep.n_confirmed = int(np.count_nonzero(self._confirmed))
+
+
+def _filled(shape, value: float) -> np.ndarray:
+    """``np.full(shape, value)`` without its Python-level overhead."""
+    out = np.empty(shape)
+    out.fill(value)
+    return out
+
+
+def _run_view(first: str, count: int) -> np.dtype:
+    """A dtype viewing ``count`` consecutive float64 fields of ``TRACK_DTYPE`` from ``first`` as one
+    ``(count,)`` field ``v`` (checked against the record layout)."""
+    names = TRACK_DTYPE.names
+    start = names.index(first)
+    offset = TRACK_DTYPE.fields[first][1]
+    for k, name in enumerate(names[start:start + count]):
+        if TRACK_DTYPE.fields[name] != (np.dtype('<f8'), offset + 8 * k):
+            raise AssertionError(f'TRACK_DTYPE fields from {first} are not {count} consecutive float64')
+    return np.dtype({'names': ['v'], 'formats': [('<f8', (count,))], 'offsets': [offset],
+                     'itemsize': TRACK_DTYPE.itemsize})
+
+
+# Record fields x, y, vx, vy, existence and mode_cv, mode_ccw, mode_cw, cov_xx, cov_xy, cov_yy,
+# cov_vxvx, cov_vyvy, and the entries of the flattened 4 x 4 covariance the latter five take.
+_STATE_VIEW = _run_view('x', 5)
+_MODES_COV_VIEW = _run_view('mode_cv', 8)
+_COV_ENTRIES = np.array([0, 1, 5, 10, 15])
 
 
 def _chunk_bounds(counts: np.ndarray, limit: int) -> list[int]:
