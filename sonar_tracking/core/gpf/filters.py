@@ -29,6 +29,7 @@ from . import sir
 from .fusion import normalise_log
 from .gaussian import (condition_velocity, floor_position, kalman_update, motion_matrices, predict, sample_gaussian,
                        weighted_moments)
+from .management import gated_assignment
 from .track import GpfTrack
 
 __all__ = ['TrackFilter', 'GaussianPF', 'SirPF', 'Ekf', 'FILTERS', 'polar_measurement', 'wrap_angle']
@@ -138,13 +139,15 @@ def polar_measurement(x: np.ndarray, sensor: tuple[float, float, float]) -> tupl
 
 
 class Ekf(TrackFilter):
-    """The extended Kalman filter on regions (module docstring): ``R`` the range-bearing noise."""
+    """The extended Kalman filter on regions (module docstring): ``R`` the range-bearing noise,
+    ``gamma`` the chi-square gate on the innovation."""
 
     name = 'ekf'
     weighs_image = False
 
-    def __init__(self, R: np.ndarray) -> None:
+    def __init__(self, R: np.ndarray, gamma: float) -> None:
         self.R = R
+        self.gamma = gamma
 
     def predict(self, tracks, dt, q, k, rng):
         if dt <= 0.0 or not tracks:
@@ -165,9 +168,26 @@ class Ekf(TrackFilter):
         nu[:, 1] = wrap_angle(nu[:, 1])
         return H, S_inv, nu
 
-    def update(self, tr: GpfTrack, nu: np.ndarray, H: np.ndarray) -> None:
-        """The EKF update on one region's innovation ``nu``."""
-        tr.mean, tr.cov = kalman_update(tr.mean, tr.cov, nu, H, self.R)
+    def update_on_regions(self, tracks: list[GpfTrack], xy: np.ndarray, sensor: tuple[float, float, float]
+                          ) -> dict[int, int]:
+        """Pair tracks and regions ``xy (N, 2)`` by global nearest neighbour on the range-bearing
+        innovations within the gate (:func:`.management.gated_assignment`) and apply the EKF update
+        of each pair; returns ``{track index: region index}``."""
+        if not tracks or len(xy) == 0:
+            return {}
+        d = xy - np.asarray(sensor[:2])[None, :]
+        z = np.column_stack([np.hypot(d[:, 0], d[:, 1]), wrap_angle(np.arctan2(d[:, 1], d[:, 0]) - sensor[2])])
+        cost = np.empty((len(tracks), len(z)))
+        parts = []
+        for i, tr in enumerate(tracks):
+            H, S_inv, nu = self.innovations(tr, z, sensor)
+            cost[i] = np.einsum('na,ab,nb->n', nu, S_inv, nu)
+            parts.append((H, nu))
+        pairs = dict(gated_assignment(cost, self.gamma))
+        for i, k in pairs.items():
+            H, nu = parts[i]
+            tracks[i].mean, tracks[i].cov = kalman_update(tracks[i].mean, tracks[i].cov, nu[k], H, self.R)
+        return pairs
 
 
 #: The particle filters by method name (``GpfTracker(method=...)``).

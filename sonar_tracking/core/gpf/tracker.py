@@ -31,7 +31,9 @@ pixels (with ``cues.pixel`` 0 on a very fine image; reported in :class:`StepRepo
 
 ``method`` chooses the filter (:data:`.filters.FILTERS`): ``gpf``, or ``sir`` for the SIR particle
 filter baseline with exactly the same cues, fusion, births and management, so the two differ only in
-the filter. An image without any data
+the filter; the EKF baseline (:class:`.ekf.EkfTracker`) is this tracker with the
+:class:`.filters.Ekf` filter, which is updated on the regions instead of the image (no re-finding,
+templates or coverage test). An image without any data
 (all zero) updates nothing: tracks are predicted and count the frame as a miss. A stamp older
 than the previous one restarts the tracker (a looping recording); ids are never reused.
 """
@@ -49,7 +51,7 @@ from ..fls.windows import WindowImage
 from ..records import GPF_TRACK_DTYPE
 from .config import GpfConfig
 from .cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
-from .filters import FILTERS
+from .filters import FILTERS, TrackFilter
 from .fusion import MF, WF, fuse_many, second_target
 from .gaussian import kalman_update
 from .management import (birth_covariance, blend_template, left_coverage, reseed_pairs, should_end, spaced,
@@ -177,13 +179,16 @@ class GpfTracker:
     """
 
     def __init__(self, config: GpfConfig | None = None, rng: np.random.Generator | None = None,
-                 method: str = 'gpf', feature_config: FeatureConfig | None = None) -> None:
-        if method not in METHODS:
-            raise ValueError(f'method {method!r} must be one of {METHODS}')
-        if rng is None:
+                 method: str = 'gpf', feature_config: FeatureConfig | None = None,
+                 track_filter: TrackFilter | None = None) -> None:
+        if track_filter is None:
+            if method not in METHODS:
+                raise ValueError(f'method {method!r} must be one of {METHODS}')
+            track_filter = FILTERS[method]()
+        if rng is None and track_filter.weighs_image:
             raise ValueError('GpfTracker needs a numpy.random.Generator (rng=np.random.default_rng(seed))')
-        self.method = method
-        self.filter = FILTERS[method]()
+        self.method = track_filter.name
+        self.filter = track_filter
         self.rng = rng
         self.feature_config = feature_config or FeatureConfig()
         self.configure(config or GpfConfig())
@@ -217,8 +222,13 @@ class GpfTracker:
         """Process the frame at ``stamp`` [s]: ``image`` the processed image (``/fls/image``, 0 = no
         data) on ``grid``, ``regions`` its REGION_DTYPE records (only ``x, y`` are used), the sonar
         pose in the image frame if known. Returns the tracks as GPF_TRACK_DTYPE records."""
+        return self._frame(stamp, check_image(image, grid), grid, regions, sensor_pose)
+
+    def _frame(self, stamp: float, img: np.ndarray | None, grid: ImageGrid | None, regions: np.ndarray | None,
+               sensor_pose: tuple[float, float, float] | None) -> np.ndarray:
+        """One frame through the steps of the module docstring; ``img`` None for a filter that does
+        not weigh the image (the EKF), whose update is on the regions."""
         t0 = time.perf_counter()
-        img = check_image(image, grid)
         if not math.isfinite(stamp):
             raise GpfInputError(f'frame stamp {stamp} is not finite')
         xy, bad = regions_xy(regions)
@@ -234,36 +244,42 @@ class GpfTracker:
             self._cues_changed = False
 
         self.filter.predict(self.tracks, dt, self.config.motion.noise, self.config.particles, self.rng)
-        t1 = time.perf_counter()
-        frame = self._prepare(img, grid)
-        rep.empty_image = frame.empty
-        wi = frame.windows
-        rep.window_pixels, rep.cue_pixel = frame.window, frame.grid.resolution
-        rep.window_capped = frame.window == MAX_WINDOW and window_pixels(self.config.cues.window,
-                                                                          frame.grid.resolution, None) > MAX_WINDOW
-        predicted = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)   # before any update
         for tr in self.tracks:
             tr.stamp = float(stamp)
-        self.update_tracks(self.tracks, frame, [np.delete(predicted, i, axis=0) for i in range(len(self.tracks))])
+        t1 = time.perf_counter()
+        sensor_xy = None if sensor_pose is None else (float(sensor_pose[0]), float(sensor_pose[1]))
+        covs = birth_covariance(xy, self.config.birth, sensor_xy)
+        used = np.zeros(len(xy), bool)
+        frame = None
+        if self.filter.weighs_image:
+            frame = self._prepare(img, grid)
+            rep.empty_image = frame.empty
+            rep.window_pixels, rep.cue_pixel = frame.window, frame.grid.resolution
+            rep.window_capped = frame.window == MAX_WINDOW and window_pixels(self.config.cues.window,
+                                                                              frame.grid.resolution, None) > MAX_WINDOW
+            predicted = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)   # before any update
+            self.update_tracks(self.tracks, frame, [np.delete(predicted, i, axis=0) for i in range(len(self.tracks))])
+        else:
+            used = self._update_on_regions(xy, sensor_pose)
         rep.seen = sum(tr.seen for tr in self.tracks)
         rep.missed = len(self.tracks) - rep.seen
         t2 = time.perf_counter()
-        sensor_xy = None if sensor_pose is None else (float(sensor_pose[0]), float(sensor_pose[1]))
-        covs = birth_covariance(xy, self.config.birth, sensor_xy)
-        if wi is not None:
+        imaged = frame is not None and not frame.empty
+        if imaged:
             rep.reseeded = self._reseed(xy, covs)
-        self._templates(wi)
-        rep.outside = self._coverage(frame)
+            self._templates(frame.windows)
+            rep.outside = self._coverage(frame)
         rep.ended, rep.ended_outside = self._end()
-        if wi is not None:
-            rep.born = self._births(xy, covs, frame)
+        if imaged or frame is None:     # a particle track's template needs image data at its birth
+            rep.born = self._births(xy, covs, frame, used)
         for tr in self.tracks:
             if not tr.confirmed and tr.hits >= self.config.birth.confirm_hits:
                 tr.confirmed = True
         rep.tracks = len(self.tracks)
         rep.confirmed = sum(tr.confirmed for tr in self.tracks)
-        rep.mf = sum(tr.seen and tr.fusion == MF for tr in self.tracks)
-        rep.wf = sum(tr.seen and tr.fusion == WF for tr in self.tracks)
+        if frame is not None:
+            rep.mf = sum(tr.seen and tr.fusion == MF for tr in self.tracks)
+            rep.wf = sum(tr.seen and tr.fusion == WF for tr in self.tracks)
         rep.seconds = {'predict': t1 - t0, 'update': t2 - t1, 'manage': time.perf_counter() - t2}
         self.report = rep
         return tracks_to_records(self.tracks)
@@ -350,11 +366,29 @@ class GpfTracker:
                 self._miss(tr)
                 continue
             tr.mean, tr.cov, tr.fusion = mean, cov, fused.mode
-            tr.seen, tr.misses = True, 0
-            tr.hits += 1
-            tr.last_seen = tr.stamp
+            self._hit(tr)
             tr.observed = observed
             self.filter.accepted(tr, particles[i], w, floor, self.rng)
+
+    def _update_on_regions(self, xy: np.ndarray, sensor_pose: tuple[float, float, float] | None) -> np.ndarray:
+        """The update of a filter on regions (:meth:`.filters.Ekf.update_on_regions`, the sonar at
+        the origin looking along x if its pose is unknown); returns which regions were used."""
+        sensor = tuple(float(v) for v in (sensor_pose or (0.0, 0.0, 0.0)))
+        pairs = self.filter.update_on_regions(self.tracks, xy, sensor)
+        used = np.zeros(len(xy), bool)
+        for i, tr in enumerate(self.tracks):
+            k = pairs.get(i)
+            if k is None:
+                self._miss(tr)
+            else:
+                self._hit(tr)
+                used[k] = True
+        return used
+
+    def _hit(self, tr: GpfTrack) -> None:
+        tr.seen, tr.misses = True, 0
+        tr.hits += 1
+        tr.last_seen = tr.stamp
 
     def _miss(self, tr: GpfTrack) -> None:
         tr.seen = False
@@ -429,24 +463,28 @@ class GpfTracker:
             # The region measures the position: a Kalman update of the widened prediction, which
             # also corrects the velocity through their correlation.
             tr.mean, tr.cov = kalman_update(tr.mean, tr.cov, xy[r] - tr.mean[:2], H, R)
-            tr.seen, tr.misses, tr.hits, tr.last_seen = True, 0, tr.hits + 1, tr.stamp
+            self._hit(tr)
             tr.match, tr.observed = 0.0, None
             self.filter.restart(tr, self.config.particles, self.rng)
         return len(pairs)
 
-    def _births(self, xy: np.ndarray, covs: np.ndarray, frame: Frame) -> int:
+    def _births(self, xy: np.ndarray, covs: np.ndarray, frame: Frame | None, used: np.ndarray) -> int:
+        """Tentative tracks on the regions no track explains and no update used, one per
+        ``birth.separation`` (:mod:`.management`), up to ``birth.max_tracks`` tracks; a particle
+        track takes its template from the frame (``frame`` None: a filter without templates)."""
         c = self.config.birth
         if len(xy) == 0:
             return 0
         means = np.array([tr.mean[:2] for tr in self.tracks]).reshape(-1, 2)
         pcov = np.array([tr.cov[:2, :2] for tr in self.tracks]).reshape(-1, 2, 2)
-        free = np.flatnonzero(unexplained(xy, means, pcov, c, covs, c.separation))
+        free = np.flatnonzero(unexplained(xy, means, pcov, c, covs, c.separation) & ~used)
         free = free[spaced(xy[free], c.separation)]
         room = max(0, c.max_tracks - len(self.tracks))
         free = free[:room]
         if free.size == 0:
             return 0
-        templates = self.cues.values(frame.windows, frame.grid, xy[free], frame.window)
+        templates = (np.zeros((0, free.size)) if frame is None
+                     else self.cues.values(frame.windows, frame.grid, xy[free], frame.window))
         for j, i in enumerate(free):
             mean = np.array([xy[i, 0], xy[i, 1], 0.0, 0.0])
             tr = GpfTrack(track_id=self.next_id, mean=mean, cov=covs[i], template=templates[:, j],

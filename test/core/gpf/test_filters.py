@@ -62,7 +62,7 @@ def test_sir_resamples_on_acceptance_and_spreads_on_a_miss():
 
 
 def test_ekf_predicts_like_kalman_and_wraps_bearing_innovations():
-    f = Ekf(np.diag([0.15 ** 2, math.radians(1.0) ** 2]))
+    f = Ekf(np.diag([0.15 ** 2, math.radians(1.0) ** 2]), 9.21)
     tr = track(mean=(-10.0, 0.001, 0.0, 0.0))
     f.predict([tr], 1.0, 0.01, 0, None)
     assert tr.cov[0, 2] > 0                          # position and velocity now correlated
@@ -71,5 +71,9 @@ def test_ekf_predicts_like_kalman_and_wraps_bearing_innovations():
     H, S_inv, nu = f.innovations(tr, z, (0.0, 0.0, 0.0))
     assert abs(nu[0, 1]) < 0.01 and nu[0, 0] == pytest.approx(0.0, abs=0.01)
     before = tr.cov[0, 0]
-    f.update(tr, nu[0], H)
-    assert tr.cov[0, 0] < before
+    far = np.array([[-10.0, 5.0]])                   # outside the gate: no pair, no update
+    assert f.update_on_regions([tr], far, (0.0, 0.0, 0.0)) == {} and tr.cov[0, 0] == before
+    # The same region as a position, beside the far one: paired and updated across the cut.
+    xy = np.array([[-10.0, 5.0], [10.0 * math.cos(z[0, 1]), 10.0 * math.sin(z[0, 1])]])
+    assert f.update_on_regions([tr], xy, (0.0, 0.0, 0.0)) == {0: 1}
+    assert tr.cov[0, 0] < before and tr.mean[1] < 0.001
