@@ -38,6 +38,11 @@ SCANLINE_DEFS = {
 }
 ECHO_DEF = ('std_msgs/Header header\nfloat32 angle\nuint8 gain\nuint16 number_of_samples\nuint16 transmit_frequency\n'
             'uint16 speed_of_sound\nuint8 range\nuint8[] intensities\n')
+# bluerobotics_sonar's Ping360: whole gradians, range from the sample period (25 ns ticks) alone.
+PING360_DEF = ('std_msgs/Header header\nfloat32 distance\nuint8 mode\nuint8 gain_setting\nuint16 angle\n'
+               'uint16 transmit_duration\nuint16 sample_period\nuint16 transmit_frequency\nfloat32 range\n'
+               'uint8[] profile_data\n')
+PING360_TICKS = 2667                    # 1500 m/s * 2667 * 25 ns / 2 = 0.0500 m per sample
 
 
 def world_target():
@@ -125,6 +130,9 @@ def write_scanning(path: Path, kind: str, mode: str, clockwise: bool, ros1: bool
     rng = np.random.default_rng(seed)
     if kind == 'scanline':
         ts, msgtype, zero, unit = typestore(ros1, SCANLINE_DEFS), 'micron_test/msg/ScanLine', 180.0, 180 / math.pi
+    elif kind == 'ping360':
+        ts, msgtype = typestore(ros1, {'ping_test/msg/SonarPing360': PING360_DEF}), 'ping_test/msg/SonarPing360'
+        zero, unit = 0.0, 200 / math.pi
     else:  # echoes in radians (ROS 2 ping360_sonar) or gradians 0..399 (its ROS 1 driver)
         ts, msgtype, zero = typestore(ros1, {'ping_test/msg/SonarEcho': ECHO_DEF}), 'ping_test/msg/SonarEcho', 0.0
         unit = 1.0 if kind == 'echo_rad' else 200 / math.pi
@@ -136,7 +144,13 @@ def write_scanning(path: Path, kind: str, mode: str, clockwise: bool, ros1: bool
         if kind == 'echo_grad':
             head = head % 400.0
         s = ping_samples(b, rng)
-        if kind == 'scanline':
+        if kind == 'ping360':   # the head's whole gradian is the recorded bearing
+            head = int(round(head)) % 400
+            b = math.remainder((-head if clockwise else head) / unit, 2 * math.pi)
+            msg = new(ts, msgtype, header=header(ts, ns, ros1), distance=0.0, mode=1, gain_setting=0, angle=head,
+                      transmit_duration=10, sample_period=PING360_TICKS, transmit_frequency=750, range=0.0,
+                      profile_data=s)
+        elif kind == 'scanline':
             bins = [new(ts, 'micron_test/msg/Bin', distance=0.0, intensity=int(v)) for v in s]
             msg = new(ts, msgtype, header=header(ts, ns, ros1), angle=head, bin_distance_step=BIN, bins=bins)
         else:
@@ -229,6 +243,8 @@ def run(*args) -> int:
     ('echo_rad', 'continuous', True, False),  # ping360_sonar on ROS 2: radians
     ('echo_grad', 'sector', False, True),     # ping360_sonar on ROS 1: gradians
     ('echo_grad', 'continuous', True, True),
+    ('ping360', 'continuous', True, False),   # bluerobotics_sonar: uint16 gradians, sample period
+    ('ping360', 'sector', False, True),
 ])
 def test_scanning_sonar_bag(tmp_path, kind, mode, clockwise, ros1):
     src = tmp_path / ('in.bag' if ros1 is True else 'in')
@@ -311,7 +327,16 @@ PROJECTED_DEFS = {
 }
 
 
-def write_projected(path: Path, ros1: bool, frame: str, dtype, layout: str, n_frames: int = 4) -> int:
+# SonarImageData dtype codes, and the full scale the test writes each type with (8-bit counts
+# scaled to it; the wide integers carry the counts as they are).
+DTYPE_CODES = {np.uint8: 0, np.int8: 1, np.uint16: 2, np.int16: 3, np.uint32: 4, np.int32: 5, np.uint64: 6,
+               np.int64: 7, np.float32: 8, np.float64: 9}
+FULL_SCALE = {np.uint8: 255.0, np.int8: 127.0, np.uint16: 65535.0, np.int16: 32767.0, np.float32: 1.0,
+              np.float64: 1.0}
+
+
+def write_projected(path: Path, ros1: bool, frame: str, dtype, layout: str, n_frames: int = 4,
+                    big_endian: bool = False) -> int:
     """Frames of 96 unevenly spaced beams over +-65 deg; returns the number of frames."""
     rng = np.random.default_rng(5)
     ts = typestore(ros1, PROJECTED_DEFS)
@@ -324,17 +349,17 @@ def write_projected(path: Path, ros1: bool, frame: str, dtype, layout: str, n_fr
     dirs = dirs[::-1]        # beams listed starboard to port... reversed: the importer sorts them
     azl = az[::-1]
     ranges = (np.arange(N_BINS) + 0.5) * BIN
-    full = np.iinfo(dtype).max if np.dtype(dtype).kind == 'u' else 1.0
+    full = FULL_SCALE.get(dtype, 255.0)
     for k in range(n_frames):
         ns = T0 + k * 100_000_000
         counts = rng.integers(30, 60, (N_BINS, len(az))).astype(np.float64)
         beam = int(np.argmin(np.abs(azl - TARGET_BEARING)))
         counts[TARGET_BIN - 1:TARGET_BIN + 2, beam - 1:beam + 2] = 200
         counts[TARGET_BIN, beam] = 240
-        values = (counts / 255.0 * full).astype(dtype)
+        values = (counts / 255.0 * full).astype(np.dtype(dtype).newbyteorder('>' if big_endian else '<'))
         data = values if layout == 'range_major' else values.T
-        code = {np.uint8: 0, np.uint16: 2, np.float32: 8}[dtype]
-        img = new(ts, 'marine_acoustic_msgs/msg/SonarImageData', is_bigendian=False, dtype=code, beam_count=len(az),
+        img = new(ts, 'marine_acoustic_msgs/msg/SonarImageData', is_bigendian=big_endian, dtype=DTYPE_CODES[dtype],
+                  beam_count=len(az),
                   data=np.ascontiguousarray(data).reshape(-1).view(np.uint8))
         msg = new(ts, 'marine_acoustic_msgs/msg/ProjectedSonarImage', header=header(ts, ns, ros1), beam_directions=dirs,
                   ranges=ranges.astype(np.float32), image=img)
@@ -344,14 +369,21 @@ def write_projected(path: Path, ros1: bool, frame: str, dtype, layout: str, n_fr
     return n_frames
 
 
-@pytest.mark.parametrize('ros1,frame,dtype,layout', [
-    (False, 'message', np.uint16, 'range_major'),
-    (True, 'rep103', np.uint8, 'range_major'),
-    (False, 'message', np.float32, 'beam_major'),
+@pytest.mark.parametrize('ros1,frame,dtype,layout,big_endian', [
+    (False, 'message', np.uint16, 'range_major', False),
+    (True, 'rep103', np.uint8, 'range_major', False),
+    (False, 'message', np.float32, 'beam_major', False),
+    (False, 'message', np.int8, 'beam_major', False),
+    (True, 'message', np.int16, 'range_major', True),
+    (False, 'rep103', np.uint32, 'range_major', False),
+    (False, 'message', np.int32, 'beam_major', True),
+    (False, 'message', np.uint64, 'range_major', False),
+    (True, 'message', np.int64, 'range_major', False),
+    (False, 'message', np.float64, 'beam_major', True),
 ])
-def test_projected_sonar_image(tmp_path, ros1, frame, dtype, layout):
+def test_projected_sonar_image(tmp_path, ros1, frame, dtype, layout, big_endian):
     src = tmp_path / ('in.bag' if ros1 else 'in')
-    n = write_projected(src, ros1, frame, dtype, layout)
+    n = write_projected(src, ros1, frame, dtype, layout, big_endian=big_endian)
     args = [src, '-o', tmp_path / 'out', '--image-layout', layout]
     assert run(*args) == 0
     sectors, poses = read_output(tmp_path / 'out')
@@ -359,11 +391,14 @@ def test_projected_sonar_image(tmp_path, ros1, frame, dtype, layout):
     g = sectors[0][1]
     assert g.n_beams == 96 and g.ping_period == 0.0
     assert math.isclose(g.angle_min, -math.radians(65), abs_tol=1e-4)
-    assert sectors[0][3] == {np.uint8: 'mono8', np.uint16: 'mono16', np.float32: '32FC1'}[dtype]
-    # The values are display-like counts scaled to full scale: decode as dB over the full range.
-    from sonar_tracking.core.intensity import decode, full_scale_of
-    decoded = [(decode(a, 'db', db_span=60.0, full_scale=full_scale_of(a.dtype) or 1.0), g2, s, e)
-               for a, g2, s, e in sectors]
+    assert sectors[0][3] == {np.uint8: 'mono8', np.uint16: 'mono16'}.get(dtype, '32FC1')
+    # The values are display-like counts scaled to the type's full scale (kept as they are, or as
+    # float32 for types without an image encoding): decode as dB over that scale.
+    from sonar_tracking.core.intensity import decode
+    full = FULL_SCALE.get(dtype, 255.0)
+    peak = max(float(np.max(a)) for a, *_ in sectors)
+    assert 200 / 255 * full <= peak <= full     # the target's counts came through at their scale
+    decoded = [(decode(a, 'db', db_span=60.0, full_scale=full), g2, s, e) for a, g2, s, e in sectors]
     check_target(decoded, poses)
 
 
