@@ -119,13 +119,15 @@ class ImmIpdaTrackerNode(SonarNode):
         self.diag.values = self._values(len(z))
 
     def _values(self, n_detections: int) -> dict[str, str]:
-        values = {'detections': str(n_detections), **self.tracker.report.summary(),
-                  'rejected_rows_total': str(self.rejected_rows), 'resets_total': str(self.resets)}
+        return {'detections': str(n_detections), **self.tracker.report.summary(),
+                'rejected_rows_total': str(self.rejected_rows), 'resets_total': str(self.resets)}
+
+    def status_values(self) -> dict[str, str]:
         pose = self.coverage.pose
-        if pose.has_odometry:
-            x, y, yaw = pose.pose_at(int(pose.newest * 1e9))
-            values['platform_pose'] = f'x {x:.2f} m, y {y:.2f} m, yaw {np.degrees(yaw):.1f} deg at {pose.newest:.3f} s'
-        return values
+        if not pose.has_odometry:
+            return {}
+        x, y, yaw = pose.pose_at(int(pose.newest * 1e9))
+        return {'platform_pose': f'x {x:.2f} m, y {y:.2f} m, yaw {np.degrees(yaw):.1f} deg at {pose.newest:.3f} s'}
 
     def _warn_once(self, text: str) -> None:
         if text not in self._warned:

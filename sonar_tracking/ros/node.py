@@ -111,4 +111,10 @@ class SonarNode(Node):
         # Matched readers per output: whether anyone receives this node's results (and a condition tests wait on).
         self.diag.listeners = {p.topic_name: p.get_subscription_count() for p in self.publishers
                                if p is not self.pub_diag and p.topic_name != '/parameter_events'}
+        self.diag.values.update(self.status_values())
         self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))
+
+    def status_values(self) -> dict[str, str]:
+        """Override: diagnostics values read when the report is published (state that changes
+        between processed messages, such as the latest pose)."""
+        return {}
