@@ -34,6 +34,7 @@ from typing import Any, BinaryIO, Iterable, Iterator, TextIO
 import numpy as np
 
 from sonar_tracking.core.config import ConfigError
+from sonar_tracking.core.timeline import TimeWentBack
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
 from sonar_tracking.core.tracking.measurements import check_measurements
 
@@ -427,7 +428,13 @@ def run(scans: Iterable[Scan], config: TrackerConfig, out: TextIO, errors: TextI
         R = np.array(scan.R, dtype=float).reshape(n, 2, 2)
         rho = np.array(scan.rho, dtype=float).reshape(n)
         try:
-            tracks = tracker.step(scan.t, z, R, rho)
+            try:
+                tracks = tracker.step(scan.t, z, R, rho)
+            except TimeWentBack as back:    # the file holds another recording from here on
+                print(f'scan {scan.number}: time went backwards by {back.back:.6g} s (another recording?): '
+                      'all tracks removed', file=errors)
+                tracker.reset()
+                tracks = tracker.step(scan.t, z, R, rho)
         except TrackingError as exc:
             print(f'scan {scan.number} (t = {scan.t:g}): skipped: {exc}', file=errors)
             continue

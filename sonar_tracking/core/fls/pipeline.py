@@ -41,6 +41,7 @@ from ..records import FEATURE_NAMES, REGION_DTYPE
 from ..sector import GeometryError, SectorError, SectorGeometry
 from ..sector import check_sector as sector_rule
 from ..structure import GridBackground, StructureConfig, WarmUp, echo_shapes, is_structure_shape, vetoed_groups
+from ..timeline import check_forward
 from .features import FeatureConfig, region_features
 from .filters import FilterConfig, PolarSweepFilter
 from .grid import ImageGrid
@@ -166,7 +167,7 @@ class FlsProcessor:
         self._t_sectors = 0.0
 
     def reset(self) -> None:
-        """Start again from an empty image (after time went backwards or the geometry changed)."""
+        """Start again from an empty image (a new recording, or the geometry changed)."""
         self.filter.reset()
         self.builder.reset()
         self.sweep.reset()
@@ -192,13 +193,14 @@ class FlsProcessor:
                    pose: tuple[float, float, float] = (0.0, 0.0, 0.0), stamp: float = 0.0) -> list[FlsFrame]:
         """Process one sector (bins x beams, linear intensity) taken at ``pose`` (image frame) at
         ``stamp`` [s]; returns the frames it completes (none, one, or the previous sweep's and this
-        sector's). Raises FlsInputError for a sector that cannot be used (nothing is changed)."""
+        sector's). Raises FlsInputError for a sector that cannot be used, and
+        :class:`~sonar_tracking.core.timeline.TimeWentBack` for one stamped before the previous
+        sector (:meth:`reset` first to start again from it); nothing is changed."""
         t0 = time.perf_counter()
         a, geometry = check_sector(amplitudes, geometry, self.config.intensity)
         if not all(map(math.isfinite, pose)):
             raise FlsInputError(f'sonar pose {pose} is not finite')
-        if stamp < self._last_stamp:
-            self.reset()
+        check_forward('sector', stamp, self._last_stamp)
         frames: list[FlsFrame] = []
         step = self.sweep.update(geometry)
         if step.starts and self._pending:

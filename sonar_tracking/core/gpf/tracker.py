@@ -35,7 +35,8 @@ the filter; the EKF baseline (:class:`.ekf.EkfTracker`) is this tracker with the
 :class:`.filters.Ekf` filter, which is updated on the regions instead of the image (no re-finding,
 templates or coverage test). An image without any data
 (all zero) updates nothing: tracks are predicted and count the frame as a miss. A stamp older
-than the previous one restarts the tracker (a looping recording); ids are never reused.
+than the previous one raises :class:`~sonar_tracking.core.timeline.TimeWentBack` and changes
+nothing; after :meth:`GpfTracker.reset` the tracker starts again (ids are never reused).
 """
 from __future__ import annotations
 
@@ -49,6 +50,7 @@ from ..fls.features import FeatureConfig
 from ..fls.grid import ImageGrid
 from ..fls.windows import WindowImage
 from ..records import GPF_TRACK_DTYPE
+from ..timeline import check_forward
 from .config import GpfConfig
 from .cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
 from .filters import FILTERS, TrackFilter
@@ -109,7 +111,6 @@ class StepReport:
     window_capped: bool = False
     cue_pixel: float = math.nan
     empty_image: bool = False
-    reset: str = ''
     seconds: dict[str, float] = field(default_factory=dict)
 
     def warnings(self) -> list[str]:
@@ -231,11 +232,9 @@ class GpfTracker:
         t0 = time.perf_counter()
         if not math.isfinite(stamp):
             raise GpfInputError(f'frame stamp {stamp} is not finite')
+        check_forward('frame', stamp, self.stamp)
         xy, bad = regions_xy(regions)
         rep = StepReport(stamp=float(stamp), regions=len(xy), bad_regions=bad)
-        if self.stamp is not None and stamp < self.stamp:
-            rep.reset = f'time went back from {self.stamp:.3f} s to {stamp:.3f} s'
-            self.reset()
         dt = 0.0 if self.stamp is None else float(stamp - self.stamp)
         self.stamp = float(stamp)
         if self._cues_changed:

@@ -13,11 +13,13 @@ Input handling of :meth:`ImmIpdaTracker.step`:
   rest of the scan is used. :attr:`ImmIpdaTracker.report` lists the dropped rows with reasons;
 * a scan with the same stamp as the previous one is dropped whole (``report.duplicate_stamp``)
   and the previous output is returned again;
-* a scan stamped before the previous one (a replayed bag looping) or more than
-  ``track.max_gap`` after it resets the tracker: every track is removed, the new scan is
-  processed as a first scan and ``report.reset`` says why. Track ids keep counting, so an id is
-  never reused within the tracker's life (ids are ``uint32``; after 2^32 starts they wrap,
-  skipping ids still in use).
+* a scan stamped before the previous one raises :class:`~sonar_tracking.core.timeline.TimeWentBack`
+  and changes nothing: the caller decides whether it is late (drop it) or a new recording
+  (:meth:`ImmIpdaTracker.reset`, then step again);
+* a scan more than ``track.max_gap`` after the previous one resets the tracker: every track is
+  removed, the new scan is processed as a first scan and ``report.reset`` says why. Track ids keep
+  counting, so an id is never reused within the tracker's life (ids are ``uint32``; after 2^32
+  starts they wrap, skipping ids still in use).
 
 The output never holds a NaN: a track whose estimate stops being finite is removed
 (``report.dropped_numerical``).
@@ -48,6 +50,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..records import TRACK_DTYPE
+from ..timeline import check_forward
 from .config import MODE_NAMES, TrackerConfig
 from .coverage import Coverage
 from .errors import TrackingInputError
@@ -239,6 +242,7 @@ class ImmIpdaTracker:
         t = float(t)
         if not math.isfinite(t):
             raise TrackingInputError(f'scan time {t} is not finite')
+        check_forward('scan', t, self._t)
         if cfg.clutter.source == 'constant':
             rho = None
         z, R, rho = as_measurements(z, R, rho, default_R=self._default_R, default_rho=cfg.clutter.density)
@@ -249,11 +253,8 @@ class ImmIpdaTracker:
                 rep.duplicate_stamp = True
                 self._fill_counts(rep)
                 return self._output
-            if dt < 0.0:
-                rep.reset = f'time went backwards by {-dt:.6g} s (a replayed bag looping?): all tracks removed'
-            elif dt > cfg.track.max_gap:
+            if dt > cfg.track.max_gap:
                 rep.reset = f'{dt:.6g} s since the previous scan exceeds track.max_gap = {cfg.track.max_gap:g} s'
-            if rep.reset:
                 self.reset()
         keep, rep.rejected = check_measurements(z, R, rho)
         if rep.rejected:

@@ -9,6 +9,7 @@ import pytest
 from sonar_tracking.core.fls import FlsConfig, FlsInputError, FlsProcessor, region_features
 from sonar_tracking.core.eval.fls_segmentation import score_frames, simulate_frames
 from sonar_tracking.core.records import FEATURE_NAMES, REGION_DTYPE
+from sonar_tracking.core.timeline import TimeWentBack
 from sonar_tracking.core.sim import SimConfig, Simulator
 
 
@@ -92,11 +93,17 @@ def test_bad_sector_is_refused_and_nothing_changes(change, match):
         p.add_sector(secs[0].amplitudes, secs[0].geometry, (math.nan, 0.0, 0.0), 1e6)
 
 
-def test_time_going_back_starts_a_new_image():
+def test_time_going_back_is_refused_unchanged_and_reset_starts_a_new_image():
     secs = sectors(n=30)
     p = FlsProcessor()
     run(p, secs)
-    frames = run(p, secs[:12])  # a looping recording
+    before = (p.resets, p._pending, p._last_stamp)
+    s = secs[0]                 # a looping recording: the caller decides (the node restarts)
+    with pytest.raises(TimeWentBack, match='sector at .* before the previous one'):
+        p.add_sector(s.amplitudes, s.geometry, s.pose, s.stamp)
+    assert (p.resets, p._pending, p._last_stamp) == before
+    p.reset()
+    frames = run(p, secs[:12])
     assert p.resets == 1 and frames[0].sectors == 11
 
 

@@ -18,6 +18,7 @@ from sonar_tracking.core.gpf import EkfTracker, GpfConfig, GpfInputError, GpfTra
 from sonar_tracking.core.gpf.cues import MAX_WINDOW, coarsen, coarsening
 from sonar_tracking.core.gpf.tracker import check_image
 from sonar_tracking.core.records import GPF_TRACK_DTYPE, REGION_DTYPE
+from sonar_tracking.core.timeline import TimeWentBack
 
 GRID = ImageGrid(resolution=0.1, width=220, height=160, origin_x=0.0, origin_y=-8.0)
 
@@ -163,12 +164,17 @@ def test_a_lost_track_takes_up_its_region_again_with_its_id():
     assert math.hypot(tr.mean[0] - walk(5)[0], tr.mean[1] - walk(5)[1]) < 0.4
 
 
-def test_time_going_back_restarts_with_new_ids():
+def test_time_going_back_is_refused_and_a_reset_restarts_with_new_ids():
     rng = np.random.default_rng(13)
     tracker = GpfTracker(rng=np.random.default_rng(14))
     run(tracker, [(image(rng, walk(k)), regions(walk(k))) for k in range(3)])
+    before = tracker.records()
+    with pytest.raises(TimeWentBack, match='frame at .* before the previous one'):
+        tracker.step(1.0, image(rng, walk(0)), GRID, regions(walk(0)), None)
+    assert np.array_equal(tracker.records(), before) and len(before) == 1
+    tracker.reset()                 # the caller's decision: a new recording
     rec = tracker.step(1.0, image(rng, walk(0)), GRID, regions(walk(0)), None)
-    assert tracker.report.reset and rec['track_id'].tolist() == [2]
+    assert rec['track_id'].tolist() == [2]
 
 
 def test_bad_input_raises_with_a_reason():
