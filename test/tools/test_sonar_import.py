@@ -266,6 +266,38 @@ def test_scanning_sonar_bag(tmp_path, kind, mode, clockwise, ros1):
     check_target(sectors, poses)
 
 
+@pytest.mark.ros
+@pytest.mark.parametrize('clockwise', [True, False])
+def test_imported_bag_through_the_fls_features_node(tmp_path, inproc, clockwise):
+    """The imported bag given to the ``fls_features`` node message by message in bag order, as a
+    replay would (through its own subscriptions: pairing, odometry buffer, time rule): the
+    brightest region of ``/fls/regions`` is the target, in the world frame, within one cell, to port."""
+    from nav_msgs.msg import Odometry
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import Image, LaserScan
+
+    from sonar_tracking.nodes.fls_features import FlsFeaturesNode
+    write_scanning(tmp_path / 'in', 'echo_rad', 'continuous', clockwise, ros1=False, seed=4)
+    direction = '--clockwise' if clockwise else '--counter-clockwise'
+    assert run(tmp_path / 'in', '-o', tmp_path / 'out', '--intensity', 'db', direction) == 0
+    node = inproc(FlsFeaturesNode)
+    published = []
+    node.pub_regions.publish = published.append
+    subs = {s.topic_name: s for s in node.subscriptions}
+    types = {'/sonar/sector': Image, '/sonar/sector_info': LaserScan, '/platform/odometry': Odometry}
+    for m in read_bag(tmp_path / 'out'):
+        subs[m.topic].callback(deserialize_message(bytes(m.data), types[m.topic]))
+    assert published, 'fls_features published no regions'
+    assert {m.header.frame_id for m in published} == {'world'}
+    regions = np.concatenate([ma.cloud_to_array(m) for m in published])
+    best = regions[np.argmax(regions['f03'])]
+    g = read_output(tmp_path / 'out')[0][0][1]
+    res = node.config.image.resolution
+    cell = math.hypot(max(g.range_resolution, res), max(TARGET_RANGE * g.angle_increment, res))
+    tx, ty = world_target()
+    assert math.hypot(best['x'] - tx, best['y'] - ty) <= cell and best['bearing'] > 0
+
+
 def test_pose_stamped_as_platform_pose(tmp_path, capsys):
     """A PoseStamped topic named by --odometry-topic gives /platform/odometry; unnamed, it is only listed."""
     ts = typestore(True, {'ping_test/msg/SonarEcho': ECHO_DEF})
