@@ -17,6 +17,11 @@ def test_demo_runs_the_pipeline_and_shows_tracks_on_truth(tmp_path):
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     out = r.stdout
     assert re.search(r'100 scans in [\d.]+ s', out)
+    from sonar_tracking.tools.sonar_stack import _has_view
+    if _has_view():     # make test installs the view extra: the demo prints where to watch it
+        assert re.search(r'^view: http://127\.0\.0\.1:\d+\S*$', out, re.M), out[:2000]
+    else:
+        assert 'no live view' in out
     true_tracks = int(re.search(r'true \(eqs\. 47-48\)\s+(\d+)', out).group(1))
     assert true_tracks >= 1
     png = tmp_path / 'demo_harbour.png'
