@@ -66,6 +66,12 @@ class TrackFilter:
     def restart(self, tr: GpfTrack, k: int, rng: np.random.Generator) -> None:
         """The track (born, or re-found on a region) starts again from its Gaussian."""
 
+    def update_on_regions(self, tracks: list[GpfTrack], xy: np.ndarray, sensor: tuple[float, float, float]
+                          ) -> dict[int, int]:
+        """Only for a filter that does not weigh the image: pair the tracks with the regions
+        ``xy (N, 2)`` seen from ``sensor`` and update the paired ones; ``{track index: region index}``."""
+        raise NotImplementedError
+
 
 class GaussianPF(TrackFilter):
     """The Gaussian particle filter (module docstring)."""
