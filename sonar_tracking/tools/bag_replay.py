@@ -6,6 +6,8 @@ subscribers acknowledge them (each message waits for all acknowledgements before
 pipeline sees every message in order). ``--clock`` publishes ``/clock`` with the bag's time for
 nodes running with ``use_sim_time``. ``--loop`` plays again and again (time goes back at every
 wrap; the package's nodes treat that as a new recording), ``--repeat N`` plays N times.
+Before it exits, the replayer waits (up to 5 s per topic) until reliable subscribers have
+acknowledged every message, so a slow reader still gets the end of the bag.
 A bag its recorder did not close (killed, power cut, full disk) is played up to the last complete
 chunk of each file, with a warning saying how far it goes; split bags are played file after file.
 """
@@ -123,6 +125,10 @@ def main(argv: list[str] | None = None) -> int:
                         pub.wait_for_all_acked(ack)
                 for w in caught:
                     log.warning(str(w.message))
+        if not stop.is_set():   # the last messages reach reliable readers before the writers go
+            for name, pub in publishers.items():
+                if not pub.wait_for_all_acked(ack):
+                    log.warning(f'{name}: not every subscriber acknowledged the last messages within 5 s')
     finally:
         log.info(f'replayed {sent} messages in {passes} pass(es)')
         node.destroy_node()
