@@ -4,6 +4,8 @@ from __future__ import annotations
 import ctypes
 import os
 import signal
+import sys
+import threading
 from importlib import resources
 from typing import TYPE_CHECKING, Callable
 
@@ -12,7 +14,7 @@ from sonar_tracking.core.allocator import apply_in_process
 if TYPE_CHECKING:
     import rclpy.node
 
-__all__ = ['run_node', 'prepare_process', 'configure_dds', 'private_domain']
+__all__ = ['run_node', 'prepare_process', 'configure_dds', 'private_domain', 'exit_if_teardown_hangs']
 
 
 def prepare_process() -> None:
@@ -77,3 +79,16 @@ def run_node(factory: Callable[[], 'rclpy.node.Node'], args: list[str] | None = 
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
+
+
+def exit_if_teardown_hangs(status: int = 0, seconds: float = 10.0) -> None:
+    """Leave the process with ``status`` if it is still here ``seconds`` from now. For a tool whose
+    work is done (every message sent and acknowledged) before it tears ROS down: the teardown of
+    rclpy and DDS can hang now and then (ros2/rclpy#456, eProsima/Fast-DDS#235), and a tool that
+    never exits stalls whatever waits for it."""
+    def leave() -> None:
+        print(f'ROS teardown took over {seconds:g} s: exiting without it', file=sys.stderr, flush=True)
+        os._exit(status)
+    timer = threading.Timer(seconds, leave)
+    timer.daemon = True
+    timer.start()

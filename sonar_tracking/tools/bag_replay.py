@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f'warning: topics not in the bag: {missing}', file=sys.stderr)
 
     from sonar_tracking.ros.qos import CLOCK_TOPIC
-    from sonar_tracking.ros.runtime import prepare_process
+    from sonar_tracking.ros.runtime import exit_if_teardown_hangs, prepare_process
     prepare_process()
     import rclpy
     from rclpy.duration import Duration
@@ -131,6 +131,7 @@ def main(argv: list[str] | None = None) -> int:
                     log.warning(f'{name}: not every subscriber acknowledged the last messages within 5 s')
     finally:
         log.info(f'replayed {sent} messages in {passes} pass(es)')
+        exit_if_teardown_hangs(0)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
