@@ -218,10 +218,12 @@ def fls_target(sectors, poses, decode_db: float = 0.0):
     regions = np.concatenate([f.regions for f in frames])
     assert len(regions), 'the front end found no region'
     best = regions[np.argmax(regions['f03'])]
-    g = sectors[0][1]
-    cell = math.hypot(max(g.range_resolution, proc.config.image.resolution),
-                      max(TARGET_RANGE * g.angle_increment, proc.config.image.resolution))
-    return (best['x'], best['y'], best['bearing']), cell
+    return (best['x'], best['y'], best['bearing']), target_cell(sectors[0][1], proc.config.image.resolution)
+
+
+def target_cell(g, resolution: float) -> float:
+    """The diagonal of the resolution cell at the target: a sector's bin and beam, or an image pixel."""
+    return math.hypot(max(g.range_resolution, resolution), max(TARGET_RANGE * g.angle_increment, resolution))
 
 
 def check_target(sectors, poses, decode_db: float = 0.0) -> None:
@@ -291,9 +293,7 @@ def test_imported_bag_through_the_fls_features_node(tmp_path, inproc, clockwise)
     assert {m.header.frame_id for m in published} == {'world'}
     regions = np.concatenate([ma.cloud_to_array(m) for m in published])
     best = regions[np.argmax(regions['f03'])]
-    g = read_output(tmp_path / 'out')[0][0][1]
-    res = node.config.image.resolution
-    cell = math.hypot(max(g.range_resolution, res), max(TARGET_RANGE * g.angle_increment, res))
+    cell = target_cell(read_output(tmp_path / 'out')[0][0][1], node.config.image.resolution)
     tx, ty = world_target()
     assert math.hypot(best['x'] - tx, best['y'] - ty) <= cell and best['bearing'] > 0
 
