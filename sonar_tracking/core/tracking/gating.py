@@ -26,10 +26,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import gammainc, gammaincinv
 
+from ..jit import kernel
+
 from .errors import TrackingInputError
 
 __all__ = ['gate_threshold', 'gate_probability', 'candidate_pairs', 'candidate_counts', 'gate_boxes', 'Innovations',
-           'innovations', 'gaussian_density']
+           'innovations', 'gaussian_density', 'gate_pairs']
 
 
 def gate_threshold(p_gate: float, dim: int = 2) -> float:
@@ -226,7 +228,22 @@ class Innovations:
 
 def gaussian_density(d2: np.ndarray, det: np.ndarray, dim: int) -> np.ndarray:
     """Normal density from its Mahalanobis distance ``d2`` and covariance determinant ``det``."""
-    return np.exp(-0.5 * d2) / np.sqrt((2.0 * math.pi) ** dim * det)
+    d2, det = np.broadcast_arrays(np.asarray(d2, dtype=float), np.asarray(det, dtype=float))
+    out = np.empty(d2.shape)
+    _densities(d2.ravel(), det.ravel(), (2.0 * math.pi) ** dim, out.reshape(-1))
+    return out
+
+
+@kernel
+def normal_density(d2, det, norm):
+    """``exp(-d2 / 2) / sqrt(norm det)``, ``norm = (2 pi)^d``: the normal density (compiled scalar)."""
+    return np.exp(-0.5 * d2) / np.sqrt(norm * det)
+
+
+@kernel
+def _densities(d2, det, norm, out):
+    for i in range(len(d2)):
+        out[i] = normal_density(d2[i], det[i], norm)
 
 
 def innovations(z: np.ndarray, R: np.ndarray, z_pred: np.ndarray, hph: np.ndarray) -> Innovations:
@@ -246,31 +263,10 @@ def innovations(z: np.ndarray, R: np.ndarray, z_pred: np.ndarray, hph: np.ndarra
     if z.ndim != 2 or z_pred.shape[0] != d or z_pred.shape[-1] != z.shape[1] or R.shape[:2] != (d, d):
         raise TrackingInputError(f'innovations: z {z.shape}, R {R.shape} and z_pred {z_pred.shape} do not match')
     if d == 2:
-        # All five statistics written into one array (rows nu, s_inv, w, d2, det): selecting
-        # pairs later is one gather.
-        out = Innovations.from_buffer(np.empty((10,) + z_pred.shape[1:]), 2)
-        nu, s_inv, w, d2, det = out.nu, out.s_inv, out.w, out.d2, out.det
-        np.subtract(z[:, None, :], z_pred, out=nu)
-        a = hph[0, 0] + R[0, 0]
-        b = hph[0, 1] + hph[1, 0]
-        b += R[0, 1]
-        b += R[1, 0]
-        b *= 0.5
-        c = hph[1, 1] + R[1, 1]
-        np.multiply(a, c, out=det)
-        det -= b * b
-        np.divide(c, det, out=s_inv[0, 0])
-        np.divide(a, det, out=s_inv[1, 1])
-        np.divide(b, det, out=s_inv[0, 1])
-        np.negative(s_inv[0, 1], out=s_inv[0, 1])
-        s_inv[1, 0] = s_inv[0, 1]
-        np.multiply(s_inv[0, 0], nu[0], out=w[0])
-        w[0] += s_inv[0, 1] * nu[1]
-        np.multiply(s_inv[1, 1], nu[1], out=w[1])
-        w[1] += s_inv[0, 1] * nu[0]
-        np.multiply(nu[0], w[0], out=d2)
-        d2 += nu[1] * w[1]
-        return out
+        # All five statistics in one array (rows nu, s_inv, w, d2, det): selecting pairs is one gather.
+        buffer = np.empty((10,) + z_pred.shape[1:])
+        _innovations_2d(z, R, z_pred, hph, buffer)
+        return Innovations.from_buffer(buffer, 2)
     nu = z[:, None, :] - z_pred
     S = hph + R[:, :, None, :]
     S = np.moveaxis(0.5 * (S + S.swapaxes(0, 1)), (0, 1), (-2, -1))     # (M, P, d, d)
@@ -279,3 +275,103 @@ def innovations(z: np.ndarray, R: np.ndarray, z_pred: np.ndarray, hph: np.ndarra
     w = np.einsum('ijmp,jmp->imp', s_inv, nu)
     d2 = np.sum(nu * w, axis=0)
     return Innovations(nu=nu, s_inv=s_inv, w=w, d2=d2, det=det)
+
+
+def gate_pairs(track_side: np.ndarray, meas_side: np.ndarray, pt: np.ndarray, pm: np.ndarray, gamma: float
+               ) -> tuple[np.ndarray, np.ndarray, Innovations, np.ndarray]:
+    """The candidate pairs ``(pt, pm)`` validated for at least one mode (eq. 25), with their statistics.
+
+    ``track_side (d + d^2, M, T)`` holds ``H x_pred`` and ``H P_pred H^T`` (row-major) of each track
+    and mode, ``meas_side (d + d^2, N)`` ``z`` and ``R`` of each measurement. Returns the kept
+    ``pt, pm`` (order kept), their :func:`innovations` and ``in_gate (M, P)``, ``d2 < gamma``.
+    ``pt`` and ``pm`` may be overwritten.
+    """
+    d = int(round((math.sqrt(4 * meas_side.shape[0] + 1) - 1) / 2))      # rows d + d^2
+    if d == 2 and len(pt):
+        buffer = np.empty((10, track_side.shape[1], len(pt)))
+        in_gate = np.empty((track_side.shape[1], len(pt)), dtype=bool)
+        kept = _gate_pairs_2d(track_side, meas_side, pt, pm, gamma, buffer, in_gate)
+        if kept == len(pt):
+            return pt, pm, Innovations.from_buffer(buffer, 2), in_gate
+        # The kernel moved the kept pairs to the front of every array.
+        return (pt[:kept], pm[:kept], Innovations.from_buffer(np.ascontiguousarray(buffer[..., :kept]), 2),
+                np.ascontiguousarray(in_gate[:, :kept]))
+    tg = np.take(track_side, pt, axis=-1)
+    mg = np.take(meas_side, pm, axis=-1)
+    innov = innovations(mg[:d], mg[d:].reshape(d, d, -1), tg[:d], tg[d:].reshape(d, d, *tg.shape[1:]))
+    in_gate = innov.d2 < gamma
+    valid = in_gate.any(axis=0)
+    if not valid.all():
+        keep = np.flatnonzero(valid)
+        pt, pm, in_gate, innov = pt[keep], pm[keep], in_gate[:, keep], innov.select(keep)
+    return pt, pm, innov, in_gate
+
+
+@kernel
+def _innovation_2d(out, m, p, z0, z1, r00, r01, r10, r11, zp0, zp1, h00, h01, h10, h11):
+    """Eqs. (25)-(26) for one (mode, pair), d = 2, into ``out[:, m, p]`` (rows nu, s_inv, w, d2, det).
+
+    ``S`` is symmetrised (the mean of its off-diagonal entries), inverted in closed form."""
+    nu0 = z0 - zp0
+    nu1 = z1 - zp1
+    a = h00 + r00
+    b = h01 + h10
+    b += r01
+    b += r10
+    b *= 0.5
+    c = h11 + r11
+    det = a * c
+    det -= b * b
+    s00 = c / det
+    s11 = a / det
+    s01 = -(b / det)
+    w0 = s00 * nu0
+    w0 += s01 * nu1
+    w1 = s11 * nu1
+    w1 += s01 * nu0
+    d2 = nu0 * w0
+    d2 += nu1 * w1
+    out[0, m, p] = nu0
+    out[1, m, p] = nu1
+    out[2, m, p] = s00
+    out[3, m, p] = s01
+    out[4, m, p] = s01
+    out[5, m, p] = s11
+    out[6, m, p] = w0
+    out[7, m, p] = w1
+    out[8, m, p] = d2
+    out[9, m, p] = det
+
+
+@kernel
+def _innovations_2d(z, R, z_pred, hph, out):
+    """:func:`innovations` for d = 2 into ``out (10, M, P)`` (compiled)."""
+    n_modes, n_pairs = z_pred.shape[1], z_pred.shape[2]
+    for p in range(n_pairs):
+        for m in range(n_modes):
+            _innovation_2d(out, m, p, z[0, p], z[1, p], R[0, 0, p], R[0, 1, p], R[1, 0, p], R[1, 1, p],
+                           z_pred[0, m, p], z_pred[1, m, p], hph[0, 0, m, p], hph[0, 1, m, p], hph[1, 0, m, p],
+                           hph[1, 1, m, p])
+
+
+@kernel
+def _gate_pairs_2d(ts, ms, pt, pm, gamma, out, in_gate):
+    """:func:`gate_pairs` for d = 2 (compiled): statistics of every candidate pair, then the pairs
+    some mode validates moved to the front (``pt``, ``pm``, ``out``, ``in_gate`` in place); returns
+    how many were kept."""
+    n_modes = ts.shape[1]
+    kept = 0
+    for p in range(len(pt)):
+        t, i = pt[p], pm[p]
+        valid = False
+        for m in range(n_modes):
+            _innovation_2d(out, m, kept, ms[0, i], ms[1, i], ms[2, i], ms[3, i], ms[4, i], ms[5, i],
+                           ts[0, m, t], ts[1, m, t], ts[2, m, t], ts[3, m, t], ts[4, m, t], ts[5, m, t])
+            g = out[8, m, kept] < gamma
+            in_gate[m, kept] = g
+            valid = valid or g
+        if valid:
+            pt[kept] = t
+            pm[kept] = i
+            kept += 1
+    return kept

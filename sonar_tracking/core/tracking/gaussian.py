@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ['moment_match']
+from ..jit import kernel
+
+__all__ = ['moment_match', 'moment_match_into']
 
 
 def moment_match(weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -40,13 +42,34 @@ def moment_match(weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> tu
     single = w.ndim == 2
     if single:
         w = w[None]
-    ref = means[:, :1]
-    y = means - ref
-    second = covs + y[:, None] * y[None, :]
-    y_bar = np.einsum('jkt,akt->ajt', w, y)
-    cov = np.einsum('jkt,abkt->abjt', w, second)
-    cov -= y_bar[:, None] * y_bar[None, :]
-    mean = ref + y_bar
+    n, k, t = means.shape
+    mean, cov = np.empty((n, w.shape[0], t)), np.empty((n, n, w.shape[0], t))
+    moment_match_into(w, means, covs, mean, cov)
     if single:
         return mean[:, 0], cov[:, :, 0]
     return mean, cov
+
+
+@kernel
+def moment_match_into(w, means, covs, mean_out, cov_out):
+    """:func:`moment_match` of ``w (J, K, T)`` into ``mean_out (n, J, T)``, ``cov_out (n, n, J, T)``
+    (compiled; callable from other kernels). Sums run over the components in order."""
+    n_mix, n_comp, n_items = w.shape
+    n = means.shape[0]
+    y_bar = np.empty(n)
+    for t in range(n_items):
+        for j in range(n_mix):
+            for a in range(n):
+                s = 0.0
+                for k in range(n_comp):
+                    s += w[j, k, t] * (means[a, k, t] - means[a, 0, t])
+                y_bar[a] = s
+            for a in range(n):
+                ya = y_bar[a]
+                for b in range(n):
+                    s = 0.0
+                    for k in range(n_comp):
+                        s += w[j, k, t] * (covs[a, b, k, t]
+                                           + (means[a, k, t] - means[a, 0, t]) * (means[b, k, t] - means[b, 0, t]))
+                    cov_out[a, b, j, t] = s - ya * y_bar[b]
+                mean_out[a, j, t] = means[a, 0, t] + ya

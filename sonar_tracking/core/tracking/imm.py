@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gaussian import moment_match
+from ..jit import kernel
+from .gaussian import moment_match, moment_match_into
 
 __all__ = ['interaction', 'combine']
 
@@ -33,16 +34,29 @@ def interaction(mu: np.ndarray, x: np.ndarray, P: np.ndarray, pi: np.ndarray
     ``(n, n, M, T)`` (eq. 18, standard form). A mode whose predicted probability is zero keeps
     its own estimate.
     """
-    mu_pred = pi.T @ mu                                       # eq. (20)
-    ok = mu_pred > 0.0
-    all_ok = np.count_nonzero(ok) == ok.size
-    safe = mu_pred if all_ok else np.where(ok, mu_pred, 1.0)
-    omega = pi.T[:, :, None] * mu[None, :, :] / safe[:, None, :]   # eq. (19): (to m, from n, T)
-    if not all_ok:
-        eye = np.broadcast_to(np.eye(len(mu))[:, :, None], omega.shape)
-        omega = np.where(ok[:, None, :], omega, eye)
-    x0, P0 = moment_match(omega, x, P)                        # eqs. (17)-(18)
+    m, t = mu.shape
+    mu_pred, omega = np.empty((m, t)), np.empty((m, m, t))
+    x0, P0 = np.empty(x.shape), np.empty(P.shape)
+    _interaction(mu, x, P, pi, mu_pred, omega, x0, P0)
     return mu_pred, x0, P0
+
+
+@kernel
+def _interaction(mu, x, P, pi, mu_pred, omega, x0, P0):
+    """:func:`interaction` into the given arrays (compiled)."""
+    n_modes, n_tracks = mu.shape
+    for t in range(n_tracks):
+        for m in range(n_modes):
+            s = 0.0
+            for k in range(n_modes):
+                s += pi[k, m] * mu[k, t]                          # eq. (20)
+            mu_pred[m, t] = s
+            for k in range(n_modes):                              # eq. (19): (to m, from k)
+                if s > 0.0:
+                    omega[m, k, t] = pi[k, m] * mu[k, t] / s
+                else:
+                    omega[m, k, t] = 1.0 if k == m else 0.0
+    moment_match_into(omega, x, P, x0, P0)                        # eqs. (17)-(18)
 
 
 def combine(mu: np.ndarray, x: np.ndarray, P: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

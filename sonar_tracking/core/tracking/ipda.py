@@ -36,13 +36,14 @@ the Kalman filter update.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
+import math
 
 import numpy as np
 
 from .errors import TrackingInputError
-from .gating import Innovations
-from .markov import update_existence
+from ..jit import kernel
+from .gating import Innovations, normal_density
+from .markov import existence_posterior
 
 __all__ = ['IpdaResult', 'likelihood_ratios', 'ipda_update', 'segment_sum']
 
@@ -61,15 +62,6 @@ class IpdaResult:
 
 # Below this many pairs one reduceat call is cheapest; above, one bincount per row is.
 _REDUCEAT_MAX_PAIRS = 1000
-
-
-@lru_cache(maxsize=8)
-def _symmetric_indices(d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Row and column of the upper-triangle entries of a d x d matrix, and ``(d, d)`` positions in that list."""
-    iu, ju = np.triu_indices(d)
-    sym = np.empty((d, d), dtype=np.intp)
-    sym[iu, ju] = sym[ju, iu] = np.arange(len(iu))
-    return iu, ju, sym
 
 
 def segment_sum(values: np.ndarray, segment: np.ndarray, n: int) -> np.ndarray:
@@ -95,9 +87,23 @@ def segment_sum(values: np.ndarray, segment: np.ndarray, n: int) -> np.ndarray:
 def likelihood_ratios(innov: Innovations, in_gate: np.ndarray, rho: np.ndarray, p_gate: float) -> np.ndarray:
     """``(M, P)`` ``p^m_i / rho_i``: eq. (28) per mode (zero outside the mode's gate) over the clutter
     density of eqs. (32)-(33)."""
-    a = np.where(in_gate, innov.density(), 0.0)
-    a *= 1.0 / (p_gate * rho)
-    return a
+    out = np.empty(in_gate.shape)
+    _likelihood_ratios(innov.d2, innov.det, in_gate, rho, p_gate, (2.0 * math.pi) ** innov.nu.shape[0], out)
+    return out
+
+
+@kernel
+def likelihood_ratio(inside, d2, det, norm, rho, p_gate):
+    """One pair and mode of :func:`likelihood_ratios` (compiled scalar); ``norm = (2 pi)^d``."""
+    a = normal_density(d2, det, norm) if inside else 0.0
+    return a * (1.0 / (p_gate * rho))
+
+
+@kernel
+def _likelihood_ratios(d2, det, in_gate, rho, p_gate, norm, out):
+    for m in range(in_gate.shape[0]):
+        for p in range(in_gate.shape[1]):
+            out[m, p] = likelihood_ratio(in_gate[m, p], d2[m, p], det[m, p], norm, rho[p], p_gate)
 
 
 def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, existence_pred: np.ndarray,
@@ -120,38 +126,80 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     d = innov.nu.shape[0]
     if len(track) > 1 and np.count_nonzero(track[1:] < track[:-1]):
         raise TrackingInputError('ipda_update: pairs must be sorted by track')
-    pdpg = p_detect * p_gate
-    a = likelihood_ratios(innov, in_gate, rho, p_gate)              # eq. (28) over rho_i (eqs. 32-33)
-    w = innov.w
-    iu, ju, sym = _symmetric_indices(d)
-    # Per pair and mode: a, a w and a (w w^T - S^-1) (upper triangle), summed per track below.
-    vals = np.concatenate((a[None], a * w, a * (w[iu] * w[ju] - innov.s_inv[iu, ju])))
-    sums = segment_sum(vals.reshape(len(vals) * n_modes, -1), track, n_tracks)
-    sums = sums.reshape(len(vals), n_modes, n_tracks)
-
-    lam_mode = (1.0 - pdpg) + pdpg * sums[0]                        # eq. (33), per mode
-    weighted = mu_pred * lam_mode
-    lam = np.add.reduce(weighted, axis=0)                                 # eq. (33)
-    if pdpg < 1.0:                                                  # then every Lambda >= 1 - P_D P_G > 0
-        mu = weighted / lam                                         # eqs. (30)-(31)
-        coef = pdpg / lam_mode                                      # beta^m_i = coef p^m_i / rho_i
-    else:
-        # P_D P_G = 1: a mode with nothing in its gate has Lambda^m = 0 and no posterior; it
-        # keeps its prediction (its probability is 0). With Lambda = 0 the track cannot exist.
-        ok = lam > 0.0
-        mu = np.where(ok, weighted / np.where(ok, lam, 1.0), mu_pred)
-        pos = lam_mode > 0.0
-        coef = np.where(pos, pdpg / np.where(pos, lam_mode, 1.0), 0.0)
-    scaled = coef * sums[1:]                                        # w_bar, then A's sum term
-    w_bar = scaled[:d]
-    A_upper = scaled[d:]
-    A_upper -= w_bar[iu] * w_bar[ju]
-    A = A_upper[sym]                                               # (d, d, M, T)
-    # x^m = x + P H^T w_bar and P^m = P + (P H^T) A (P H^T)^T; P H^T = first d columns of P.
-    pht = P_pred[:, :d]
-    x = x_pred + np.einsum('ijmt,jmt->imt', pht, w_bar)             # eqs. (35), (37)
-    # Not re-symmetrised: the asymmetry stays at rounding level (1e-16 relative), and every
-    # consumer reads symmetric parts (the gate averages S_xy and S_yx).
-    P = P_pred + np.einsum('ikmt,lkmt->ilmt', np.einsum('ijmt,jkmt->ikmt', pht, A), pht)  # eqs. (36), (38)
-    existence = update_existence(existence_pred, lam)               # eq. (40)
+    x, P = np.empty(x_pred.shape), np.empty(P_pred.shape)
+    mu, lam_mode = np.empty(mu_pred.shape), np.empty(mu_pred.shape)
+    existence, lam = np.empty(n_tracks), np.empty(n_tracks)
+    _ipda_update(x_pred, P_pred, mu_pred, np.asarray(existence_pred, dtype=float), track, innov.s_inv, innov.w,
+                 innov.d2, innov.det, in_gate, rho, float(p_detect), float(p_gate), (2.0 * math.pi) ** d,
+                 x, P, mu, existence, lam, lam_mode)
     return IpdaResult(x=x, P=P, mu=mu, existence=existence, lam=lam, lam_mode=lam_mode)
+
+
+@kernel
+def _ipda_update(x_pred, P_pred, mu_pred, e_pred, track, s_inv, w, d2, det, in_gate, rho, p_detect, p_gate, norm,
+                 x, P, mu, existence, lam, lam_mode):
+    """:func:`ipda_update` into the given arrays (compiled; the algebra of the module docstring)."""
+    n, n_modes, n_tracks = x_pred.shape
+    d = w.shape[0]
+    n_upper = d * (d + 1) // 2
+    pdpg = p_detect * p_gate
+    # Per track and mode, summed over its pairs in order: a, a w and a (w w^T - S^-1) (upper triangle).
+    sums = np.zeros((1 + d + n_upper, n_modes, n_tracks))
+    for p in range(len(track)):
+        t = track[p]
+        for m in range(n_modes):
+            a = likelihood_ratio(in_gate[m, p], d2[m, p], det[m, p], norm, rho[p], p_gate)   # eq. (28) / rho_i
+            sums[0, m, t] += a
+            u = 1 + d
+            for i in range(d):
+                sums[1 + i, m, t] += a * w[i, m, p]
+                for j in range(i, d):
+                    sums[u, m, t] += a * (w[i, m, p] * w[j, m, p] - s_inv[i, j, m, p])
+                    u += 1
+    w_bar = np.empty(d)
+    A = np.empty((d, d))
+    pa = np.empty((n, d))
+    for t in range(n_tracks):
+        total = 0.0
+        for m in range(n_modes):
+            lam_mode[m, t] = (1.0 - pdpg) + pdpg * sums[0, m, t]                           # eq. (33), per mode
+            total += mu_pred[m, t] * lam_mode[m, t]                                        # eq. (33)
+        lam[t] = total
+        for m in range(n_modes):
+            weighted = mu_pred[m, t] * lam_mode[m, t]
+            if pdpg < 1.0:                              # then every Lambda >= 1 - P_D P_G > 0
+                mu[m, t] = weighted / total                                                # eqs. (30)-(31)
+                coef = pdpg / lam_mode[m, t]                                               # beta^m_i = coef p^m_i / rho_i
+            else:
+                # P_D P_G = 1: a mode with nothing in its gate has Lambda^m = 0 and no posterior; it
+                # keeps its prediction (its probability is 0). With Lambda = 0 the track cannot exist.
+                mu[m, t] = weighted / total if total > 0.0 else mu_pred[m, t]
+                coef = pdpg / lam_mode[m, t] if lam_mode[m, t] > 0.0 else 0.0
+            for i in range(d):
+                w_bar[i] = coef * sums[1 + i, m, t]
+            u = 1 + d
+            for i in range(d):
+                for j in range(i, d):
+                    A[i, j] = coef * sums[u, m, t] - w_bar[i] * w_bar[j]
+                    A[j, i] = A[i, j]
+                    u += 1
+            # x^m = x + P H^T w_bar and P^m = P + (P H^T) A (P H^T)^T; P H^T = first d columns of P.
+            for i in range(n):
+                s = 0.0
+                for j in range(d):
+                    s += P_pred[i, j, m, t] * w_bar[j]
+                x[i, m, t] = x_pred[i, m, t] + s                                           # eqs. (35), (37)
+                for k in range(d):
+                    s = 0.0
+                    for j in range(d):
+                        s += P_pred[i, j, m, t] * A[j, k]
+                    pa[i, k] = s
+            # Not re-symmetrised: the asymmetry stays at rounding level (1e-16 relative), and every
+            # consumer reads symmetric parts (the gate averages S_xy and S_yx).
+            for i in range(n):
+                for j in range(n):
+                    s = 0.0
+                    for k in range(d):
+                        s += pa[i, k] * P_pred[j, k, m, t]
+                    P[i, j, m, t] = P_pred[i, j, m, t] + s                                 # eqs. (36), (38)
+        existence[t] = existence_posterior(e_pred[t], total)                               # eq. (40)

@@ -8,9 +8,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..jit import kernel
 from .errors import TrackingInputError
 
-__all__ = ['mode_transition_matrix', 'predict_existence', 'update_existence']
+__all__ = ['mode_transition_matrix', 'predict_existence', 'update_existence', 'existence_posterior']
 
 
 def mode_transition_matrix(n_modes: int, p_stay: float) -> np.ndarray:
@@ -47,11 +48,22 @@ def update_existence(p_pred: np.ndarray, lam: np.ndarray) -> np.ndarray:
     the 0/0 case (``p = 1`` and ``Lambda = 0``: a target certain to exist yet impossible to have
     missed) gives 0.
     """
-    num = p_pred * lam
-    den = (1.0 - p_pred) + num
-    if np.count_nonzero(den > 0.0) == den.size:
-        out = num / den
-    else:
-        with np.errstate(invalid='ignore', divide='ignore'):
-            out = np.where(den > 0.0, num / np.where(den > 0.0, den, 1.0), 0.0)
-    return np.minimum(out, 1.0, out=out)
+    p_pred, lam = np.broadcast_arrays(np.asarray(p_pred, dtype=float), np.asarray(lam, dtype=float))
+    out = np.empty(p_pred.shape)
+    _existence_posteriors(p_pred.ravel(), lam.ravel(), out.reshape(-1))
+    return out
+
+
+@kernel
+def existence_posterior(p, lam):
+    """Eq. (40) for one track (compiled scalar; see :func:`update_existence`)."""
+    num = p * lam
+    den = (1.0 - p) + num
+    out = num / den if den > 0.0 else 0.0
+    return 1.0 if out > 1.0 else out
+
+
+@kernel
+def _existence_posteriors(p, lam, out):
+    for i in range(len(p)):
+        out[i] = existence_posterior(p[i], lam[i])

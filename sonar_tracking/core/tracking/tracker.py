@@ -54,11 +54,11 @@ from ..timeline import check_forward
 from .config import MODE_NAMES, TrackerConfig
 from .coverage import Coverage
 from .errors import TrackingInputError
-from .gating import BoxSearch, gate_boxes, gate_threshold, innovations
+from .gating import BoxSearch, gate_boxes, gate_pairs, gate_threshold
 from .imm import combine, interaction
 from .ipda import ipda_update
 from .jipda import association_factors, pair_likelihoods
-from .kalman import predict, transition_operators
+from .kalman import predict
 from .management import (birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
                          one_point_initiation, pair_budget, unused_measurements)
 from .markov import mode_transition_matrix, predict_existence
@@ -290,20 +290,20 @@ class ImmIpdaTracker:
         return self._output
 
     # ---------------------------------------------------------------- internals
-    def _transitions(self, dt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _transitions(self, dt: float) -> tuple[np.ndarray, np.ndarray]:
         if self._fq_cache is None or self._fq_cache[0] != dt:
             F = np.stack([m.model.transition(dt) for m in self.modes])
             Q = np.stack([white_noise_acceleration(dt, m.noise, self.d) for m in self.modes])
-            self._fq_cache = (dt, F, Q, transition_operators(F))
+            self._fq_cache = (dt, F, Q)
         return self._fq_cache[1:]
 
     def _predict_update(self, dt: float, z: np.ndarray, R: np.ndarray, rho: np.ndarray, rep: StepReport
                         ) -> tuple[np.ndarray, np.ndarray]:
         cfg, d = self.config, self.d
         meas_side = np.concatenate((z.T, R.reshape(len(z), d * d).T))                # (d + d^2, N)
-        F, Q, ops = self._transitions(dt)
+        F, Q = self._transitions(dt)
         mu_pred, x0, P0 = interaction(self._mu, self._x, self._P, self.pi)           # eqs. (17)-(20)
-        x_pred, P_pred = predict(x0, P0, F, Q, ops)                                   # eqs. (22)-(23)
+        x_pred, P_pred = predict(x0, P0, F, Q)                                   # eqs. (22)-(23)
         e_pred = predict_existence(self._exist, cfg.existence.survival, cfg.existence.birth)  # eq. (24)
 
         # One contiguous gather per side: [H x, H P H^T] per track and [z, R] per measurement.
@@ -354,18 +354,8 @@ class ImmIpdaTracker:
 
     def _gate_chunk(self, track_side, search, meas_side):
         """Validated pairs of a contiguous group of tracks (eqs. 25-26): ``pt, pm, innov, in_gate``."""
-        d = self.d
         pt, pm = search.pairs()
-        tg = np.take(track_side, pt, axis=-1)
-        mg = np.take(meas_side, pm, axis=-1)
-        innov = innovations(mg[:d], mg[d:].reshape(d, d, -1), tg[:d],
-                            tg[d:].reshape(d, d, *tg.shape[1:]))                          # eqs. (25)-(26)
-        in_gate = innov.d2 < self.gamma
-        valid = in_gate.any(axis=0)
-        if not valid.all():
-            keep = np.flatnonzero(valid)
-            pt, pm, in_gate, innov = pt[keep], pm[keep], in_gate[:, keep], innov.select(keep)
-        return pt, pm, innov, in_gate
+        return gate_pairs(track_side, meas_side, pt, pm, self.gamma)                  # eqs. (25)-(26)
 
     def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho, r=None,
                       gated=None):
