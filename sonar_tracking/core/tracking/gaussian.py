@@ -53,23 +53,30 @@ def moment_match(weights: np.ndarray, means: np.ndarray, covs: np.ndarray) -> tu
 @kernel
 def moment_match_into(w, means, covs, mean_out, cov_out):
     """:func:`moment_match` of ``w (J, K, T)`` into ``mean_out (n, J, T)``, ``cov_out (n, n, J, T)``
-    (compiled; callable from other kernels). Sums run over the components in order."""
+    (compiled, items innermost; callable from other kernels). Sums run over the components in order."""
     n_mix, n_comp, n_items = w.shape
     n = means.shape[0]
-    y_bar = np.empty(n)
-    for t in range(n_items):
-        for j in range(n_mix):
-            for a in range(n):
-                s = 0.0
+    y = np.empty((n, n_comp, n_items))
+    for a in range(n):
+        for k in range(n_comp):
+            for t in range(n_items):
+                y[a, k, t] = means[a, k, t] - means[a, 0, t]
+    y_bar = np.empty((n, n_items))
+    for j in range(n_mix):
+        for a in range(n):
+            for t in range(n_items):
+                y_bar[a, t] = 0.0
+            for k in range(n_comp):
+                for t in range(n_items):
+                    y_bar[a, t] += w[j, k, t] * y[a, k, t]
+        for a in range(n):
+            for b in range(n):
+                for t in range(n_items):
+                    cov_out[a, b, j, t] = 0.0
                 for k in range(n_comp):
-                    s += w[j, k, t] * (means[a, k, t] - means[a, 0, t])
-                y_bar[a] = s
-            for a in range(n):
-                ya = y_bar[a]
-                for b in range(n):
-                    s = 0.0
-                    for k in range(n_comp):
-                        s += w[j, k, t] * (covs[a, b, k, t]
-                                           + (means[a, k, t] - means[a, 0, t]) * (means[b, k, t] - means[b, 0, t]))
-                    cov_out[a, b, j, t] = s - ya * y_bar[b]
-                mean_out[a, j, t] = means[a, 0, t] + ya
+                    for t in range(n_items):
+                        cov_out[a, b, j, t] += w[j, k, t] * (covs[a, b, k, t] + y[a, k, t] * y[b, k, t])
+                for t in range(n_items):
+                    cov_out[a, b, j, t] -= y_bar[a, t] * y_bar[b, t]
+            for t in range(n_items):
+                mean_out[a, j, t] = means[a, 0, t] + y_bar[a, t]

@@ -74,6 +74,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from ..jit import kernel
 from .gating import BoxSearch
 
 __all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'birth_measurements',
@@ -179,9 +180,8 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     if threshold <= 0 or len(conf) == 0 or n < 2:
         return drop
     if len(conf) * n <= _DENSE_DUPLICATES:
-        # Few tracks: the position test on every (confirmed, track) combination at once, as a
-        # (confirmed, track) grid (fewer numpy calls than building the pairs first).
-        ci, tj = _near_grid(x, P, conf, threshold)
+        # Few tracks: every (confirmed, track) combination.
+        ci, tj = np.repeat(conf, n), np.tile(np.arange(n), len(conf))
     else:
         pos = x[:2].T                                                       # (T, 2)
         half = np.sqrt(threshold * np.stack((P[0, 0], P[1, 1]), axis=1))   # (T, 2)
@@ -197,19 +197,8 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
                 search = BoxSearch(lo, hi, pos)
         ci, tj = search.pairs()
         ci = conf[ci]
-        dx, dy = x[0, tj] - x[0, ci], x[1, tj] - x[1, ci]
-        a, b, c = P[0, 0, tj] + P[0, 0, ci], P[0, 1, tj] + P[0, 1, ci], P[1, 1, tj] + P[1, 1, ci]
-        with np.errstate(divide='ignore', invalid='ignore'):
-            d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
-        near = (d2 < threshold) & (ci != tj)
-        ci, tj = ci[near], tj[near]
-    if len(ci) == 0:
-        return drop
-    diff = (x[:, ci] - x[:, tj]).T
-    S = (P[:, :, ci] + P[:, :, tj]).transpose(2, 0, 1)
-    full = np.linalg.solve(S, diff[..., None])[..., 0]
-    dup = np.einsum('ki,ki->k', diff, full) < threshold
-    if not dup.any():
+    dup = np.empty(len(ci), dtype=bool)
+    if not _duplicate_pairs(x, P, ci, tj, float(threshold), dup):
         return drop
     ci, tj = ci[dup], tj[dup]
     # Keep the confirmed track, and of two confirmed ones the older (its id stays on the target).
@@ -219,19 +208,36 @@ def duplicate_tracks(x: np.ndarray, P: np.ndarray, existence: np.ndarray, confir
     return drop
 
 
-def _near_grid(x: np.ndarray, P: np.ndarray, conf: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pairs (confirmed track ``ci``, other track ``tj``) within ``threshold`` on position alone,
-    tested on the full ``(len(conf), T)`` grid; ordered by ``ci``, then ``tj``."""
-    xc = x[:2, conf, None]                                  # (2, C, 1)
-    Pc = P[:2, :2, conf, None]                              # (2, 2, C, 1)
-    dx, dy = x[0] - xc[0], x[1] - xc[1]
-    a, b, c = P[0, 0] + Pc[0, 0], P[0, 1] + Pc[0, 1], P[1, 1] + Pc[1, 1]
-    with np.errstate(divide='ignore', invalid='ignore'):
-        d2 = (c * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * c - b * b)
-    near = d2 < threshold
-    near[np.arange(len(conf)), conf] = False
-    rows, tj = near.nonzero()
-    return conf[rows], tj
+@kernel
+def _duplicate_pairs(x, P, ci, tj, threshold, dup):
+    """``dup[k]``: tracks ``ci[k]`` and ``tj[k]`` (distinct) are within ``threshold`` (squared
+    Mahalanobis distance of their combined states, covariances summed); returns whether any is.
+    The test on position alone comes first: it is necessary, and cheap."""
+    n = x.shape[0]
+    S = np.empty((n, n))
+    diff = np.empty(n)
+    found = False
+    for k in range(len(ci)):
+        c, t = ci[k], tj[k]
+        dup[k] = False
+        if c == t:
+            continue
+        dx, dy = x[0, t] - x[0, c], x[1, t] - x[1, c]
+        a, b, e = P[0, 0, t] + P[0, 0, c], P[0, 1, t] + P[0, 1, c], P[1, 1, t] + P[1, 1, c]
+        if not (e * dx * dx - 2 * b * dx * dy + a * dy * dy) / (a * e - b * b) < threshold:
+            continue
+        for i in range(n):
+            diff[i] = x[i, c] - x[i, t]
+            for j in range(n):
+                S[i, j] = P[i, j, c] + P[i, j, t]
+        y = np.linalg.solve(S, diff)
+        d2 = 0.0
+        for i in range(n):
+            d2 += diff[i] * y[i]
+        if d2 < threshold:
+            dup[k] = True
+            found = True
+    return found
 
 
 def excess_tracks(existence: np.ndarray, confirmed: np.ndarray, max_tracks: int) -> np.ndarray:
