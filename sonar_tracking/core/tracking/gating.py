@@ -68,8 +68,26 @@ def gate_boxes(centres: np.ndarray, hph_diag: np.ndarray, r_diag_max: np.ndarray
     if not math.isfinite(gamma):
         shape = (centres.shape[2], centres.shape[0])
         return np.full(shape, -np.inf), np.full(shape, np.inf)
-    half = np.sqrt(gamma * (hph_diag + np.asarray(r_diag_max)[:, None, None]))
-    return np.minimum.reduce(centres - half, axis=1).T, np.maximum.reduce(centres + half, axis=1).T
+    d, _, n_tracks = centres.shape
+    lo, hi = np.empty((n_tracks, d)), np.empty((n_tracks, d))
+    _gate_boxes(centres, hph_diag, np.asarray(r_diag_max, dtype=float), float(gamma), lo, hi)
+    return lo, hi
+
+
+@kernel
+def _gate_boxes(centres, hph_diag, r_diag_max, gamma, lo, hi):
+    """:func:`gate_boxes` into ``lo``, ``hi`` (compiled): half-widths ``sqrt(gamma (H P H^T_jj + max R_jj))``."""
+    d, n_modes, n_tracks = centres.shape
+    for t in range(n_tracks):
+        for j in range(d):
+            low, high = np.inf, -np.inf
+            for m in range(n_modes):
+                half = np.sqrt(gamma * (hph_diag[j, m, t] + r_diag_max[j]))
+                a, b = centres[j, m, t] - half, centres[j, m, t] + half
+                # NaN wins, as in np.minimum / np.maximum (a NaN box means no gate: every pair).
+                low = a if (a < low or np.isnan(a)) and not np.isnan(low) else low
+                high = b if (b > high or np.isnan(b)) and not np.isnan(high) else high
+            lo[t, j], hi[t, j] = low, high
 
 
 # Up to this many track-measurement combinations, testing all of them beats the strip search.
@@ -112,8 +130,9 @@ class BoxSearch:
         if self.kind == 'all':
             return np.repeat(np.arange(n_tracks), n_meas), np.tile(np.arange(n_meas), n_tracks)
         if self.kind == 'dense':
-            track, meas = _inside(lo, hi, z).nonzero()
-            return track, meas
+            track, meas = np.empty(n_tracks * n_meas, dtype=np.intp), np.empty(n_tracks * n_meas, dtype=np.intp)
+            k = _inside_pairs(lo, hi, z, track, meas)
+            return track[:k], meas[:k]
         order, tr, first, count = self._search()
         track = np.repeat(tr, count)
         start = np.cumsum(count) - count
@@ -154,6 +173,24 @@ def _inside(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:
     for j in range(1, z.shape[1]):
         inside &= (z[:, j] >= lo[:, j, None]) & (z[:, j] <= hi[:, j, None])
     return inside
+
+
+@kernel
+def _inside_pairs(lo, hi, z, track, meas):
+    """The pairs of :func:`_inside`, by track then measurement, into ``track``, ``meas``; returns their number."""
+    k = 0
+    for t in range(lo.shape[0]):
+        for i in range(z.shape[0]):
+            inside = True
+            for j in range(z.shape[1]):
+                if not (z[i, j] >= lo[t, j] and z[i, j] <= hi[t, j]):
+                    inside = False
+                    break
+            if inside:
+                track[k] = t
+                meas[k] = i
+                k += 1
+    return k
 
 
 def _strip_search(lo: np.ndarray, hi: np.ndarray, z: np.ndarray

@@ -78,7 +78,7 @@ from ..jit import kernel
 from .gating import BoxSearch
 
 __all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'birth_measurements',
-           'duplicate_tracks', 'excess_tracks', 'pair_budget']
+           'duplicate_tracks', 'excess_tracks', 'pair_budget', 'assess_tracks']
 
 
 def initial_covariance(R: np.ndarray, speed_max: float) -> np.ndarray:
@@ -238,6 +238,43 @@ def _duplicate_pairs(x, P, ci, tj, threshold, dup):
             dup[k] = True
             found = True
     return found
+
+
+@kernel
+def assess_tracks(xc, Pc, existence, confirmed, confirm, terminate, max_variance, alive):
+    """Confirmation and termination of every track from its combined estimate (compiled).
+
+    A track whose estimate is not finite (or whose position variance is not positive) is dropped;
+    a finite tentative track with existence above ``confirm`` becomes confirmed (``confirmed`` is
+    updated in place); a finite track stays ``alive`` while its existence is at least ``terminate``
+    and the largest eigenvalue of its position covariance at most ``max_variance``. Returns the
+    counts ``(dropped as not finite, newly confirmed, terminated)``.
+    """
+    n, n_tracks = xc.shape
+    dropped = newly = ended = 0
+    for t in range(n_tracks):
+        pxx, pxy, pyy = Pc[0, 0, t], Pc[0, 1, t], Pc[1, 1, t]
+        major = 0.5 * (pxx + pyy) + np.sqrt(0.25 * (pxx - pyy) ** 2 + pxy ** 2)     # largest eigenvalue
+        # Every failure of finiteness shows in the position variance or the state sum.
+        total = major + existence[t]
+        var_min = Pc[0, 0, t]
+        for i in range(n):
+            total += xc[i, t]
+            var_min = min(var_min, Pc[i, i, t])
+            for j in range(n):
+                total += Pc[i, j, t]
+        finite = np.isfinite(total) and var_min > 0.0
+        if not finite:
+            dropped += 1
+            alive[t] = False
+            continue
+        if not confirmed[t] and existence[t] > confirm:
+            confirmed[t] = True
+            newly += 1
+        alive[t] = existence[t] >= terminate and major <= max_variance
+        if not alive[t]:
+            ended += 1
+    return dropped, newly, ended
 
 
 def excess_tracks(existence: np.ndarray, confirmed: np.ndarray, max_tracks: int) -> np.ndarray:

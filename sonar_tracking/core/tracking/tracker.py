@@ -59,7 +59,7 @@ from .imm import combine, interaction
 from .ipda import ipda_update
 from .jipda import association_factors, pair_likelihoods
 from .kalman import predict
-from .management import (birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
+from .management import (assess_tracks, birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
                          one_point_initiation, pair_budget, unused_measurements)
 from .markov import mode_transition_matrix, predict_existence
 from .measurements import Rejection, as_measurements, check_measurements
@@ -397,9 +397,6 @@ class ImmIpdaTracker:
 
     def _keep(self, keep: np.ndarray) -> None:
         """Keep only the tracks ``keep`` (bool mask) in every per-track array."""
-        # Boolean indexing, not take: it leaves the tracks axis outermost in memory, and the IMM
-        # mixing's three-term einsum sums in an order that follows the layout (take changed the
-        # last digit of one scenario 1 RMSE).
         self._ids, self._exist, self._confirmed = self._ids[keep], self._exist[keep], self._confirmed[keep]
         self._x, self._P, self._mu = self._x[..., keep], self._P[..., keep], self._mu[:, keep]
         self._xc, self._Pc = self._xc[:, keep], self._Pc[..., keep]
@@ -409,21 +406,10 @@ class ImmIpdaTracker:
     def _manage(self, rep: StepReport, t: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
         xc, Pc = self._xc, self._Pc
-        pxx, pxy, pyy = Pc[0, 0], Pc[0, 1], Pc[1, 1]
-        major = 0.5 * (pxx + pyy) + np.sqrt(0.25 * (pxx - pyy) ** 2 + pxy ** 2)    # largest eigenvalue
-        # Every failure of finiteness shows in the position variance or the state sum.
-        var_min = Pc[0, 0]
-        for i in range(1, len(Pc)):
-            var_min = np.minimum(var_min, Pc[i, i])
-        # ufunc reductions: the ndarray methods forward to Python (numpy._core._methods), same result.
-        finite = np.isfinite(major + np.add.reduce(xc, axis=0) + np.add.reduce(Pc, axis=(0, 1)) + self._exist)
-        finite &= var_min > 0
-        rep.dropped_numerical = int(len(finite) - np.count_nonzero(finite))
-        newly = finite & ~self._confirmed & (self._exist > cfg.confirm)
-        self._confirmed = self._confirmed | newly
-        rep.confirmed = int(np.count_nonzero(newly))
-        alive = finite & (self._exist >= cfg.terminate) & (major <= self.config.track.max_position_std ** 2)
-        rep.terminated = int(np.count_nonzero(finite & ~alive))
+        alive = np.empty(len(self._ids), dtype=bool)
+        rep.dropped_numerical, rep.confirmed, rep.terminated = assess_tracks(
+            xc, Pc, self._exist, self._confirmed, cfg.confirm, cfg.terminate,
+            self.config.track.max_position_std ** 2, alive)
         if coverage is not None:
             inside = coverage.contains(xc[:2])
             before = self._outside_since if self._outside_since is not None else _filled(len(inside), np.nan)
@@ -438,8 +424,6 @@ class ImmIpdaTracker:
             # not yet kept from starting tracks), so they are found when a track is confirmed;
             # between confirmed tracks (targets coalescing) the check runs every scan.
             idx = (alive if rep.confirmed else alive & self._confirmed).nonzero()[0]
-            # Fancy indexing as before (not take): the same memory layout, so the 4-D test's einsum
-            # sums in the same order (see _keep).
             dup = duplicate_tracks(xc[:, idx], Pc[..., idx], self._exist[idx], self._confirmed[idx],
                                    self._ids[idx], self.config.track.merge_threshold, self.config.track.max_pairs)
             rep.merged = int(np.count_nonzero(dup))
