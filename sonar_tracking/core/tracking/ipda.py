@@ -169,7 +169,7 @@ def _ipda_update(x_pred, P_pred, mu_pred, e_pred, track, s_inv, w, d2, det, in_g
             weighted = mu_pred[m, t] * lam_mode[m, t]
             if pdpg < 1.0:                              # then every Lambda >= 1 - P_D P_G > 0
                 mu[m, t] = weighted / total                                                # eqs. (30)-(31)
-                coef = pdpg / lam_mode[m, t]                                               # beta^m_i = coef p^m_i / rho_i
+                coef = pdpg / lam_mode[m, t]                            # beta^m_i = coef p^m_i / rho_i
             else:
                 # P_D P_G = 1: a mode with nothing in its gate has Lambda^m = 0 and no posterior; it
                 # keeps its prediction (its probability is 0). With Lambda = 0 the track cannot exist.

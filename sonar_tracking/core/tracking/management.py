@@ -70,51 +70,84 @@ nearby pairs, not confirmed x all tracks.
 """
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
 from ..jit import kernel
 from .gating import BoxSearch
 
-__all__ = ['initial_covariance', 'one_point_initiation', 'unused_measurements', 'birth_measurements',
+__all__ = ['initial_covariance', 'initial_state_into', 'renew_tracks', 'unused_measurements', 'birth_measurements',
            'duplicate_tracks', 'excess_tracks', 'pair_budget', 'assess_tracks']
 
 
 def initial_covariance(R: np.ndarray, speed_max: float) -> np.ndarray:
-    """``P_{0|0} = diag(R, speed_max^2 / 3 I)`` for measurement covariances ``R (..., d, d)``."""
+    """``P_{0|0} = diag(R, speed_max^2 / 3 I)`` for measurement covariances ``R (..., d, d)`` (eq. 48)."""
     R = np.asarray(R, dtype=float)
     d = R.shape[-1]
-    P = np.zeros(R.shape[:-2] + (2 * d, 2 * d))
-    P[..., :d, :d] = R
-    idx = np.arange(d, 2 * d)
-    P[..., idx, idx] = speed_max ** 2 / 3.0
-    return P
+    flat = np.ascontiguousarray(R.reshape(-1, d, d))
+    k = len(flat)
+    x, P = np.empty((2 * d, 1, k)), np.empty((2 * d, 2 * d, 1, k))
+    _initial_states(np.zeros((k, d)), flat, speed_max ** 2 / 3.0, x, P)
+    return np.moveaxis(P[:, :, 0], -1, 0).reshape(R.shape[:-2] + (2 * d, 2 * d))
 
 
-def one_point_initiation(z: np.ndarray, R: np.ndarray, speed_max: float, n_modes: int
-                         ) -> tuple[np.ndarray, np.ndarray]:
-    """Mode-conditioned states ``(2d, M, K)`` and covariances ``(2d, 2d, M, K)`` of K new tracks.
+@kernel
+def initial_state_into(z, R, k, speed_var, x, P, col):
+    """One-point initiation (eqs. 47-48) of measurement ``k`` of ``z (K, d)``, ``R (K, d, d)`` into
+    column ``col`` of ``x (2d, M, T)``, ``P (2d, 2d, M, T)``, the same for every mode: position
+    ``z_k``, velocity 0; ``P_{0|0} = diag(R_k, speed_var I)`` (``speed_var = speed_max^2 / 3``)."""
+    d = z.shape[1]
+    for m in range(x.shape[1]):
+        for i in range(2 * d):
+            x[i, m, col] = z[k, i] if i < d else 0.0
+            for j in range(2 * d):
+                if i < d and j < d:
+                    P[i, j, m, col] = R[k, i, j]
+                else:
+                    P[i, j, m, col] = speed_var if i == j else 0.0
 
-    ``z (K, d)``, ``R (K, d, d)``; every mode starts from the same state, ``P_{0|0}`` of
-    :func:`initial_covariance` (tracks last, as in :mod:`~sonar_tracking.core.tracking.imm`).
-    """
-    k, d = z.shape
-    x = np.zeros((2 * d, n_modes, k))
-    x[:d] = z.T[:, None, :]
-    P = _initial_template(d, float(speed_max), n_modes).repeat(k, axis=-1)
-    P[:d, :d] = R.transpose(1, 2, 0)[:, :, None, :]
-    return x, P
+
+@kernel
+def _initial_states(z, R, speed_var, x, P):
+    for k in range(len(z)):
+        initial_state_into(z, R, k, speed_var, x, P, k)
 
 
-@lru_cache(maxsize=8)
-def _initial_template(d: int, speed_max: float, n_modes: int) -> np.ndarray:
-    """``(2d, 2d, M, 1)`` read-only: zero, but ``speed_max^2 / 3`` on the velocity diagonal."""
-    P = np.zeros((2 * d, 2 * d, n_modes, 1))
-    for i in range(d, 2 * d):
-        P[i, i] = speed_max ** 2 / 3.0
-    P.flags.writeable = False
-    return P
+@kernel
+def renew_tracks(keep, x, P, mu, existence, confirmed, xc, Pc, z, R, speed_var, initial_existence,
+                 x2, P2, mu2, existence2, confirmed2, xc2, Pc2):
+    """The tracks ``keep`` (bool mask) of the per-track arrays, in order, then one new tentative
+    track per row of ``z``, ``R`` (:func:`initial_state_into`, mode probabilities equal, existence
+    ``initial_existence``), written into the arrays ending in 2 (compiled; one pass for the whole
+    rebuild a scan needs)."""
+    n, n_modes, n_tracks = x.shape
+    q = 0
+    for t in range(n_tracks):
+        if not keep[t]:
+            continue
+        for i in range(n):
+            xc2[i, q] = xc[i, t]
+            for j in range(n):
+                Pc2[i, j, q] = Pc[i, j, t]
+            for m in range(n_modes):
+                x2[i, m, q] = x[i, m, t]
+                for j in range(n):
+                    P2[i, j, m, q] = P[i, j, m, t]
+        for m in range(n_modes):
+            mu2[m, q] = mu[m, t]
+        existence2[q] = existence[t]
+        confirmed2[q] = confirmed[t]
+        q += 1
+    for k in range(len(z)):
+        col = q + k
+        initial_state_into(z, R, k, speed_var, x2, P2, col)
+        for m in range(n_modes):
+            mu2[m, col] = 1.0 / n_modes
+        existence2[col] = initial_existence
+        confirmed2[col] = False
+        for i in range(n):
+            xc2[i, col] = x2[i, 0, col]
+            for j in range(n):
+                Pc2[i, j, col] = P2[i, j, 0, col]
 
 
 def unused_measurements(n_meas: int, pair_track: np.ndarray, pair_meas: np.ndarray,

@@ -60,7 +60,7 @@ from .ipda import ipda_update
 from .jipda import association_factors, pair_likelihoods
 from .kalman import predict
 from .management import (assess_tracks, birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
-                         one_point_initiation, pair_budget, unused_measurements)
+                         pair_budget, renew_tracks, unused_measurements)
 from .markov import mode_transition_matrix, predict_existence
 from .measurements import Rejection, as_measurements, check_measurements
 from .motion import ConstantTurn, ConstantVelocity, MotionModel
@@ -269,15 +269,15 @@ class ImmIpdaTracker:
             with np.errstate(over='ignore', invalid='ignore'):
                 self._manage(rep, t, coverage)
             alive = self._alive
-            # Pairs of surviving tracks (re-indexed when measurements of confirmed tracks are sought).
+            # Pairs of surviving tracks (the tracks are removed below, with the new ones added).
             sel = alive[pair_track]
-            pair_meas = pair_meas[sel]
-            if cfg.init.exclude == 'confirmed':
-                pair_track = (np.cumsum(alive) - 1)[pair_track[sel]]
+            pair_track, pair_meas = pair_track[sel], pair_meas[sel]
+        else:
+            alive = np.zeros(0, dtype=bool)
         exclude = self._confirmed if cfg.init.exclude == 'confirmed' else None
         unused = unused_measurements(len(z), pair_track, pair_meas, exclude)
         born = birth_measurements(unused, pair_meas, rho, cfg.init.max_per_scan)
-        self._initiate(z[born], R[born])
+        self._renew(alive, z[born], R[born])
         rep.initiated = len(born)
         rep.not_initiated = int(np.count_nonzero(unused)) - len(born)
         if len(self._ids) > cfg.track.max_tracks:
@@ -430,25 +430,27 @@ class ImmIpdaTracker:
             if rep.merged:
                 alive[idx[dup]] = False
         self._alive = alive
-        if np.count_nonzero(alive) < len(alive):
-            self._keep(alive)
 
-    def _initiate(self, z: np.ndarray, R: np.ndarray) -> None:
-        k = len(z)
-        if k == 0:
+    def _renew(self, keep: np.ndarray, z: np.ndarray, R: np.ndarray) -> None:
+        """Keep the tracks ``keep`` (bool mask) and start one tentative track per row of ``z``, ``R``
+        (one-point initiation, eqs. 47-48): every per-track array rebuilt once."""
+        k, kept = len(z), int(np.count_nonzero(keep))
+        if k == 0 and kept == len(keep):
             return
-        m = len(self.modes)
-        x, P = one_point_initiation(z, R, self.config.init.speed_max, m)
+        self._ids = self._ids[keep]
         self._ids = np.concatenate((self._ids, self._new_ids(k)))
-        self._x = np.concatenate((self._x, x), axis=-1)
-        self._P = np.concatenate((self._P, P), axis=-1)
-        self._mu = np.concatenate((self._mu, _filled((m, k), 1.0 / m)), axis=-1)
-        self._exist = np.concatenate((self._exist, _filled(k, self.config.existence.initial)))
-        self._confirmed = np.concatenate((self._confirmed, np.zeros(k, dtype=bool)))
-        self._xc = np.concatenate((self._xc, x[:, 0]), axis=-1)
-        self._Pc = np.concatenate((self._Pc, P[:, :, 0]), axis=-1)
         if self._outside_since is not None:
-            self._outside_since = np.concatenate((self._outside_since, _filled(k, np.nan)))
+            self._outside_since = np.concatenate((self._outside_since[keep], _filled(k, np.nan)))
+        n, m, total = self.n, len(self.modes), kept + k
+        x, P, mu = np.empty((n, m, total)), np.empty((n, n, m, total)), np.empty((m, total))
+        exist, confirmed = np.empty(total), np.empty(total, dtype=bool)
+        xc, Pc = np.empty((n, total)), np.empty((n, n, total))
+        renew_tracks(keep, self._x, self._P, self._mu, self._exist, self._confirmed, self._xc, self._Pc,
+                     np.ascontiguousarray(z, dtype=float), np.ascontiguousarray(R, dtype=float),
+                     self.config.init.speed_max ** 2 / 3.0, float(self.config.existence.initial),
+                     x, P, mu, exist, confirmed, xc, Pc)
+        self._x, self._P, self._mu, self._exist, self._confirmed = x, P, mu, exist, confirmed
+        self._xc, self._Pc = xc, Pc
 
     def _new_ids(self, k: int) -> np.ndarray:
         if self._next_id + k <= _ID_SPACE and not self._wrapped:

@@ -330,8 +330,8 @@ for _tag, _n, _k, _warm, _reps in STONESOUP:
     register(Case(
         name=_name, group='tracking', make=_stonesoup(_n, _name, _warm, _k), self_timed=True, repeats=_reps,
         derived=_derived(_name, _n + P_D * _k),
-        description=f'Stone Soup {STONESOUP_VERSION} MultiTargetMixtureTracker + KDTreePDA + MultiMeasurementInitiator, '
-                    f'same detections ({_k} targets, {_n} clutter/scan)'))
+        description=f'Stone Soup {STONESOUP_VERSION} MultiTargetMixtureTracker + KDTreePDA + '
+                    f'MultiMeasurementInitiator, same detections ({_k} targets, {_n} clutter/scan)'))
 
 for _k in PAIRS:
     _ipda, _jipda, _ss = (f'tracking.imm_ipda.pairs{_k}', f'tracking.imm_jipda.pairs{_k}',
