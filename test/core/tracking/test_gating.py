@@ -96,3 +96,44 @@ def test_innovations_match_direct_linear_algebra(d):
                                                         rel=1e-10)
     with pytest.raises(TrackingInputError):
         innovations(z[:, :3], R, zp, hph)
+
+
+@pytest.mark.parametrize('d', [1, 2, 3])
+def test_gate_pairs_keeps_exactly_the_pairs_some_mode_validates(d):
+    """The compiled d = 2 path and the general one: every candidate pair some mode's gate holds is
+    kept, in order, with the statistics of :func:`innovations` on that pair."""
+    rng = np.random.default_rng(11 + d)
+    M, T, N = 3, 6, 9
+    track_side = np.concatenate((rng.normal(size=(d, M, T)) * 3,
+                                 np.moveaxis(random_spd(rng, (M, T), d), (0, 1), (2, 3)).reshape(d * d, M, T)))
+    z = rng.normal(size=(d, N)) * 3
+    R = np.moveaxis(random_spd(rng, (N,), d), 0, -1)
+    meas_side = np.concatenate((z, R.reshape(d * d, N)))
+    pt, pm = np.repeat(np.arange(T), N), np.tile(np.arange(N), T)
+    gamma = gate_threshold(0.9, d)
+    kt, km, inn, in_gate = gating.gate_pairs(track_side, meas_side, pt.copy(), pm.copy(), gamma)
+    ref = innovations(z[:, pm], R[:, :, pm], track_side[:d][:, :, pt],
+                      track_side[d:].reshape(d, d, M, T)[..., pt])
+    valid = (ref.d2 < gamma).any(axis=0)
+    assert 0 < valid.sum() < len(pt)                 # both outcomes occur
+    np.testing.assert_array_equal(kt, pt[valid])
+    np.testing.assert_array_equal(km, pm[valid])
+    np.testing.assert_array_equal(in_gate, ref.d2[:, valid] < gamma)
+    for name in ('nu', 's_inv', 'w', 'd2', 'det'):
+        np.testing.assert_array_equal(getattr(inn, name), getattr(ref, name)[..., valid])
+
+
+def test_gate_boxes_hold_every_mode_and_a_nan_gives_a_nan_box():
+    """The boxes are the union over modes of ``centre +- sqrt(gamma (H P H^T_jj + max R_jj))``; a NaN
+    centre or variance makes the whole box NaN (np.minimum / np.maximum semantics), which the box
+    search treats as no gate."""
+    rng = np.random.default_rng(3)
+    c, h = rng.normal(size=(2, 3, 7)) * 50, rng.random((2, 3, 7)) * 20
+    c[0, 1, 2], h[1, 2, 4] = np.nan, np.nan
+    r = np.array([1.0, 4.0])
+    lo, hi = gating.gate_boxes(c, h, r, 9.21)
+    half = np.sqrt(9.21 * (h + r[:, None, None]))
+    np.testing.assert_array_equal(lo, np.minimum.reduce(c - half, axis=1).T)
+    np.testing.assert_array_equal(hi, np.maximum.reduce(c + half, axis=1).T)
+    assert np.isnan(lo[2, 0]) and np.isnan(hi[4, 1]) and np.isfinite(lo[0]).all()
+    assert gating.BoxSearch(lo, hi, rng.normal(size=(5, 2))).kind == 'all'
