@@ -11,9 +11,9 @@
 
 Array layout. The per-track arrays of :mod:`.imm`, :mod:`.kalman`, :mod:`.gaussian`,
 :mod:`.ipda` and the per-pair arrays of :mod:`.gating` are component-major with tracks (or
-pairs) last: ``x (n, M, T)``, ``P (n, n, M, T)``, ``mu (M, T)`` for T tracks and M modes. numpy
-then works along the long axis, which is what makes one scan of hundreds of tracks cost
-microseconds per track. Motion models return ordinary ``(n, n)`` matrices, measurements come
+pairs) last: ``x (n, M, T)``, ``P (n, n, M, T)``, ``mu (M, T)`` for T tracks and M modes. numpy,
+and the compiled kernels (:mod:`sonar_tracking.core.jit`) where their innermost loop runs over the
+tracks, then work along the long axis. Motion models return ordinary ``(n, n)`` matrices, measurements come
 in as ``z (N, d)``, ``R (N, d, d)``, and :meth:`.ImmIpdaTracker.estimates` /
 :meth:`.ImmIpdaTracker.mode_states` give tracks-first copies.
 """

@@ -3,8 +3,9 @@
 Each track is an independent IMM-IPDA (Musicki & Suvorova's IMM-IPDA as summarised by the
 paper): interaction (eqs. 17-20), prediction (22-23) and existence prediction (24), gating
 (25-27), likelihoods (28-29), update (30-40) and combination (41-42); track management as in
-:mod:`~sonar_tracking.core.tracking.management`. Everything is computed for all tracks,
-modes and validated pairs at once with numpy; nothing loops over tracks or measurements.
+:mod:`~sonar_tracking.core.tracking.management`. Each scan is a handful of calls over all
+tracks, modes and validated pairs at once: compiled kernels (:mod:`~sonar_tracking.core.jit`) for the
+per-track arithmetic, numpy for the rest; no Python loop runs over tracks or measurements.
 
 Input handling of :meth:`ImmIpdaTracker.step`:
 
@@ -303,7 +304,7 @@ class ImmIpdaTracker:
         meas_side = np.concatenate((z.T, R.reshape(len(z), d * d).T))                # (d + d^2, N)
         F, Q = self._transitions(dt)
         mu_pred, x0, P0 = interaction(self._mu, self._x, self._P, self.pi)           # eqs. (17)-(20)
-        x_pred, P_pred = predict(x0, P0, F, Q)                                   # eqs. (22)-(23)
+        x_pred, P_pred = predict(x0, P0, F, Q)                                        # eqs. (22)-(23)
         e_pred = predict_existence(self._exist, cfg.existence.survival, cfg.existence.birth)  # eq. (24)
 
         # One contiguous gather per side: [H x, H P H^T] per track and [z, R] per measurement.
