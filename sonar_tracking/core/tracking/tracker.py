@@ -341,9 +341,9 @@ class ImmIpdaTracker:
             done = 0
             for a, b in zip(bounds[:-1], bounds[1:]):
                 r_chunk = None if r is None else r[done:]
-                res, pt, pm = self._update_chunk(x_pred[..., a:b], P_pred[..., a:b], mu_pred[:, a:b], e_pred[a:b],
-                                                 track_side[..., a:b], BoxSearch(lo[a:b], hi[a:b], z), z, meas_side,
-                                                 rho, r_chunk)
+                # Contiguous copies: the kernels then see the arrays of the one-chunk path (no second compilation).
+                part = [np.ascontiguousarray(v[..., a:b]) for v in (x_pred, P_pred, mu_pred, e_pred, track_side)]
+                res, pt, pm = self._update_chunk(*part, BoxSearch(lo[a:b], hi[a:b], z), z, meas_side, rho, r_chunk)
                 done += len(pt)
                 self._x[..., a:b], self._P[..., a:b], self._mu[:, a:b] = res.x, res.P, res.mu
                 self._exist[a:b] = res.existence
@@ -384,7 +384,8 @@ class ImmIpdaTracker:
         gated = None
         for a, b in zip(bounds[:-1], bounds[1:]):
             chunk_search = search if len(bounds) == 2 else BoxSearch(lo[a:b], hi[a:b], z)
-            pt, pm, innov, in_gate = gated = self._gate_chunk(track_side[..., a:b], chunk_search, meas_side)
+            ts = track_side if len(bounds) == 2 else np.ascontiguousarray(track_side[..., a:b])
+            pt, pm, innov, in_gate = gated = self._gate_chunk(ts, chunk_search, meas_side)
             like = pair_likelihoods(mu_pred[:, a:b], pt, innov, in_gate, rho[pm], cfg.detection.probability,
                                     cfg.detection.gate_probability)
             tracks.append(pt + a)
