@@ -113,10 +113,11 @@ class BoxSearch:
                      'all' if not finite else   # no gate: every pair
                      'dense' if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS else 'strips')
         self._strips: tuple | None = None
+        self._counts: np.ndarray | None = None
 
-    def _search(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def _search(self) -> tuple:
         if self._strips is None:
-            self._strips = _strip_search(self.lo, self.hi, self.z)
+            self._strips = _strip_order(self.z, self.lo, self.hi)
         return self._strips
 
     def pairs(self) -> tuple[np.ndarray, np.ndarray]:
@@ -133,15 +134,10 @@ class BoxSearch:
             track, meas = np.empty(n_tracks * n_meas, dtype=np.intp), np.empty(n_tracks * n_meas, dtype=np.intp)
             k = _inside_pairs(lo, hi, z, track, meas)
             return track[:k], meas[:k]
-        order, tr, first, count = self._search()
-        track = np.repeat(tr, count)
-        start = np.cumsum(count) - count
-        meas = order[np.arange(len(track)) - np.repeat(start - first, count)]
-        keep = (z[meas, 0] >= lo[track, 0]) & (z[meas, 0] <= hi[track, 0])
-        for j in range(1, z.shape[1]):
-            zj = z[meas, j]
-            keep &= (zj >= lo[track, j]) & (zj <= hi[track, j])
-        return track[keep], meas[keep]
+        counts = self.counts()
+        track, meas = np.empty(int(counts.sum()), dtype=np.intp), np.empty(int(counts.sum()), dtype=np.intp)
+        k = _strip_pairs(lo, hi, z, *self._search(), track, meas)
+        return track[:k], meas[:k]
 
     def counts(self) -> np.ndarray:
         """``(T,)`` upper bound on the pairs :meth:`pairs` returns per track, without building them
@@ -153,8 +149,10 @@ class BoxSearch:
             return np.full(n_tracks, n_meas, dtype=np.intp)
         if self.kind == 'dense':
             return np.count_nonzero(_inside(self.lo, self.hi, self.z), axis=1)
-        _, tr, _, count = self._search()
-        return np.bincount(tr, weights=count, minlength=n_tracks).astype(np.intp)
+        if self._counts is None:
+            self._counts = np.empty(n_tracks, dtype=np.intp)
+            _strip_counts(self.lo, self.hi, *self._search(), self._counts)
+        return self._counts
 
 
 def candidate_pairs(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -193,11 +191,10 @@ def _inside_pairs(lo, hi, z, track, meas):
     return k
 
 
-def _strip_search(lo: np.ndarray, hi: np.ndarray, z: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The strip search of :func:`candidate_pairs`: measurement ``order`` and, per (track, strip)
-    the box overlaps, the track ``tr``, the ``first`` position in ``order`` and the ``count``."""
-    n_tracks, n_meas = lo.shape[0], z.shape[0]
+def _strip_order(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
+    """The measurements of the strip search sorted by (strip, second coordinate): ``order``, their
+    sort ``keys`` and the strip geometry ``x0, width, n_strips, y0, span_y``."""
+    n_meas = z.shape[0]
     zx = z[:, 0]
     zy = z[:, 1] if z.shape[1] > 1 else np.zeros(n_meas)
     x0, span_x = zx.min(), zx.max() - zx.min()
@@ -209,20 +206,64 @@ def _strip_search(lo: np.ndarray, hi: np.ndarray, z: np.ndarray
     strip = np.minimum(np.floor((zx - x0) / width).astype(np.intp), n_strips - 1)
     key = strip * span_y + (zy - y0)
     order = np.argsort(key, kind='stable')
-    keys = key[order]
-    s_lo = np.clip(np.floor((lo[:, 0] - x0) / width), 0, n_strips - 1).astype(np.intp)
-    s_hi = np.clip(np.floor((hi[:, 0] - x0) / width), -1, n_strips - 1).astype(np.intp)
-    ns = np.maximum(s_hi - s_lo + 1, 0)
-    tr = np.repeat(np.arange(n_tracks), ns)
-    st = np.arange(len(tr)) - np.repeat(np.cumsum(ns) - ns - s_lo, ns)
-    if z.shape[1] > 1:
-        ylo = np.clip(lo[tr, 1] - y0, 0.0, span_y)
-        yhi = np.clip(hi[tr, 1] - y0, -0.5, span_y - 0.5)
+    return order, key[order], float(x0), float(width), n_strips, float(y0), float(span_y)
+
+
+@kernel
+def _strip_range(lo, hi, t, keys, x0, width, n_strips, y0, span_y, st):
+    """Positions ``[first, end)`` in ``keys`` of the measurements of strip ``st`` within track ``t``'s
+    second-axis range (compiled)."""
+    if lo.shape[1] > 1:
+        ylo = min(max(lo[t, 1] - y0, 0.0), span_y)
+        yhi = min(max(hi[t, 1] - y0, -0.5), span_y - 0.5)
     else:
-        ylo, yhi = np.zeros(len(tr)), np.zeros(len(tr))
+        ylo, yhi = 0.0, 0.0
     first = np.searchsorted(keys, st * span_y + ylo, side='left')
-    count = np.maximum(np.searchsorted(keys, st * span_y + yhi, side='right') - first, 0)
-    return order, tr, first, count
+    end = np.searchsorted(keys, st * span_y + yhi, side='right')
+    return first, max(end, first)
+
+
+@kernel
+def _strips_of(lo, hi, t, x0, width, n_strips):
+    """The strips ``[s_lo, s_hi]`` track ``t``'s box overlaps along the first axis (compiled)."""
+    s_lo = int(min(max(np.floor((lo[t, 0] - x0) / width), 0.0), n_strips - 1.0))
+    s_hi = int(min(max(np.floor((hi[t, 0] - x0) / width), -1.0), n_strips - 1.0))
+    return s_lo, s_hi
+
+
+@kernel
+def _strip_counts(lo, hi, order, keys, x0, width, n_strips, y0, span_y, counts):
+    """Per track, the measurements of the strip search (before the exact box test) into ``counts``."""
+    for t in range(lo.shape[0]):
+        s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
+        n = 0
+        for st in range(s_lo, s_hi + 1):
+            first, end = _strip_range(lo, hi, t, keys, x0, width, n_strips, y0, span_y, st)
+            n += end - first
+        counts[t] = n
+
+
+@kernel
+def _strip_pairs(lo, hi, z, order, keys, x0, width, n_strips, y0, span_y, track, meas):
+    """The strip search's pairs inside their track's box, by track, then strip, then key, into
+    ``track``, ``meas``; returns their number."""
+    k = 0
+    for t in range(lo.shape[0]):
+        s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
+        for st in range(s_lo, s_hi + 1):
+            first, end = _strip_range(lo, hi, t, keys, x0, width, n_strips, y0, span_y, st)
+            for p in range(first, end):
+                i = order[p]
+                inside = True
+                for j in range(z.shape[1]):
+                    if not (z[i, j] >= lo[t, j] and z[i, j] <= hi[t, j]):
+                        inside = False
+                        break
+                if inside:
+                    track[k] = t
+                    meas[k] = i
+                    k += 1
+    return k
 
 
 @dataclass(frozen=True)
