@@ -148,7 +148,9 @@ class BoxSearch:
         if self.kind == 'all':
             return np.full(n_tracks, n_meas, dtype=np.intp)
         if self.kind == 'dense':
-            return np.count_nonzero(_inside(self.lo, self.hi, self.z), axis=1)
+            counts = np.empty(n_tracks, dtype=np.intp)
+            _inside_counts(self.lo, self.hi, self.z, counts)
+            return counts
         if self._counts is None:
             self._counts = np.empty(n_tracks, dtype=np.intp)
             _strip_counts(self.lo, self.hi, *self._search(), self._counts)
@@ -165,30 +167,37 @@ def candidate_counts(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarra
     return BoxSearch(lo, hi, z).counts()
 
 
-def _inside(lo: np.ndarray, hi: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """``(T, N)`` bool: measurement n lies in box t."""
-    inside = (z[:, 0] >= lo[:, 0, None]) & (z[:, 0] <= hi[:, 0, None])
-    for j in range(1, z.shape[1]):
-        inside &= (z[:, j] >= lo[:, j, None]) & (z[:, j] <= hi[:, j, None])
-    return inside
+@kernel
+def _inside_counts(lo, hi, z, counts):
+    """Per track, the measurements inside its box, into ``counts`` (compiled)."""
+    for t in range(lo.shape[0]):
+        n = 0
+        for i in range(z.shape[0]):
+            n += _in_box(z, i, lo, hi, t)
+        counts[t] = n
 
 
 @kernel
 def _inside_pairs(lo, hi, z, track, meas):
-    """The pairs of :func:`_inside`, by track then measurement, into ``track``, ``meas``; returns their number."""
+    """Every (track, measurement) with the measurement inside the track's box, by track then
+    measurement, into ``track``, ``meas``; returns their number (compiled)."""
     k = 0
     for t in range(lo.shape[0]):
         for i in range(z.shape[0]):
-            inside = True
-            for j in range(z.shape[1]):
-                if not (z[i, j] >= lo[t, j] and z[i, j] <= hi[t, j]):
-                    inside = False
-                    break
-            if inside:
+            if _in_box(z, i, lo, hi, t):
                 track[k] = t
                 meas[k] = i
                 k += 1
     return k
+
+
+@kernel
+def _in_box(z, i, lo, hi, t):
+    """Measurement ``i`` lies in track ``t``'s box, edges included (compiled scalar)."""
+    for j in range(z.shape[1]):
+        if not (z[i, j] >= lo[t, j] and z[i, j] <= hi[t, j]):
+            return False
+    return True
 
 
 def _strip_order(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
@@ -254,12 +263,7 @@ def _strip_pairs(lo, hi, z, order, keys, x0, width, n_strips, y0, span_y, track,
             first, end = _strip_range(lo, hi, t, keys, x0, width, n_strips, y0, span_y, st)
             for p in range(first, end):
                 i = order[p]
-                inside = True
-                for j in range(z.shape[1]):
-                    if not (z[i, j] >= lo[t, j] and z[i, j] <= hi[t, j]):
-                        inside = False
-                        break
-                if inside:
+                if _in_box(z, i, lo, hi, t):
                     track[k] = t
                     meas[k] = i
                     k += 1
