@@ -35,13 +35,13 @@ the Kalman filter update.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import TrackingInputError
 from ..jit import kernel
+from .errors import TrackingInputError
 from .gating import Innovations, normal_density
 from .markov import existence_posterior
 
