@@ -47,4 +47,7 @@ _drop_stale_caches(_CORE)
 
 def kernel(fn):
     """``fn`` compiled by numba (lazily, per argument types) with the settings above."""
-    return numba.njit(cache=True, nogil=True, error_model='numpy')(fn)
+    try:
+        return numba.njit(cache=True, nogil=True, error_model='numpy')(fn)
+    except RuntimeError:       # no writable cache location at all: compile in every process instead
+        return numba.njit(cache=False, nogil=True, error_model='numpy')(fn)
