@@ -140,7 +140,7 @@ def run(patterns: list[str] | None = None, repeats: int | None = None,
     chosen = [c for c in all_cases.values()
               if not patterns or any(fnmatch.fnmatch(c.name, p) or p in c.name for p in patterns)]
     names = {c.name for c in chosen}
-    for c in list(chosen):
+    for c in chosen:           # grows while it runs: a baseline's own baseline comes along too
         if c.compare_to and c.compare_to not in names:
             chosen.append(all_cases[c.compare_to])
             names.add(c.compare_to)

@@ -36,3 +36,14 @@ def test_bench_list_and_unknown_pattern(capsys):
                  'adapters.array_to_cloud'):
         assert name in listed
     assert main(['bench', 'no-such-case']) == 2
+
+
+def test_a_baselines_own_baseline_comes_along(monkeypatch):
+    """Asking for a case whose baseline has a baseline of its own runs all three (it raised KeyError)."""
+    quick = {name: bench.Case(name=name, group='g', make=lambda: (lambda: None), repeats=3, compare_to=base)
+             for name, base in (('a', 'b'), ('b', 'c'), ('c', None))}
+    monkeypatch.setattr(bench, 'cases', lambda: dict(quick))
+    results = {r.name: r for r in bench.run(['a'])}
+    assert set(results) == {'a', 'b', 'c'}
+    assert results['a'].ratio == results['b'].median_s / results['a'].median_s
+    assert results['b'].ratio == results['c'].median_s / results['b'].median_s
