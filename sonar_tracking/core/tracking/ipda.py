@@ -122,8 +122,7 @@ def ipda_update(x_pred: np.ndarray, P_pred: np.ndarray, mu_pred: np.ndarray, exi
     rho : ``(P,)`` clutter density at the pair's measurement [1/m^d], > 0.
     p_detect, p_gate : ``P_D`` and ``P_G``.
     """
-    n, n_modes, n_tracks = x_pred.shape
-    d = innov.nu.shape[0]
+    n_tracks, d = x_pred.shape[2], innov.nu.shape[0]
     if len(track) > 1 and np.count_nonzero(track[1:] < track[:-1]):
         raise TrackingInputError('ipda_update: pairs must be sorted by track')
     x, P = np.empty(x_pred.shape), np.empty(P_pred.shape)
