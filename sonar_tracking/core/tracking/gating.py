@@ -219,14 +219,9 @@ def _strip_order(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
 
 
 @kernel
-def _strip_range(lo, hi, t, keys, x0, width, n_strips, y0, span_y, st):
-    """Positions ``[first, end)`` in ``keys`` of the measurements of strip ``st`` within track ``t``'s
-    second-axis range (compiled)."""
-    if lo.shape[1] > 1:
-        ylo = min(max(lo[t, 1] - y0, 0.0), span_y)
-        yhi = min(max(hi[t, 1] - y0, -0.5), span_y - 0.5)
-    else:
-        ylo, yhi = 0.0, 0.0
+def _strip_range(keys, st, span_y, ylo, yhi):
+    """Positions ``[first, end)`` in ``keys`` of the measurements of strip ``st`` whose second
+    coordinate (from its minimum) lies in ``[ylo, yhi]`` (compiled)."""
     first = np.searchsorted(keys, st * span_y + ylo, side='left')
     end = np.searchsorted(keys, st * span_y + yhi, side='right')
     return first, max(end, first)
@@ -241,13 +236,23 @@ def _strips_of(lo, hi, t, x0, width, n_strips):
 
 
 @kernel
+def _y_range(lo, hi, t, y0, span_y):
+    """Track ``t``'s second-axis range from the measurements' minimum, clipped to the keys' span
+    (``0, 0`` for one-dimensional measurements; compiled)."""
+    if lo.shape[1] > 1:
+        return min(max(lo[t, 1] - y0, 0.0), span_y), min(max(hi[t, 1] - y0, -0.5), span_y - 0.5)
+    return 0.0, 0.0
+
+
+@kernel
 def _strip_counts(lo, hi, order, keys, x0, width, n_strips, y0, span_y, counts):
     """Per track, the measurements of the strip search (before the exact box test) into ``counts``."""
     for t in range(lo.shape[0]):
         s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
+        ylo, yhi = _y_range(lo, hi, t, y0, span_y)
         n = 0
         for st in range(s_lo, s_hi + 1):
-            first, end = _strip_range(lo, hi, t, keys, x0, width, n_strips, y0, span_y, st)
+            first, end = _strip_range(keys, st, span_y, ylo, yhi)
             n += end - first
         counts[t] = n
 
@@ -259,8 +264,9 @@ def _strip_pairs(lo, hi, z, order, keys, x0, width, n_strips, y0, span_y, track,
     k = 0
     for t in range(lo.shape[0]):
         s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
+        ylo, yhi = _y_range(lo, hi, t, y0, span_y)
         for st in range(s_lo, s_hi + 1):
-            first, end = _strip_range(lo, hi, t, keys, x0, width, n_strips, y0, span_y, st)
+            first, end = _strip_range(keys, st, span_y, ylo, yhi)
             for p in range(first, end):
                 i = order[p]
                 if _in_box(z, i, lo, hi, t):
