@@ -17,14 +17,14 @@ the time, because a full box makes most of the general computation unnecessary:
 * the moments of eq. (1) (f14-f20) are weighted sums over the box, a few small products per
   window, with Hu's invariants from :func:`~.features.hu_moments`;
 * the co-occurrence counts (f21-f30) of a full box count all pixel pairs of the box in the four
-  directions: one ``bincount`` for all windows, grey levels from :func:`~.features.quantise` (of
-  the whole image once when a call asks for more window pixels than the image has) and the
-  statistics from :func:`~.features.glcm_features`.
+  directions, with grey levels by :func:`~.features.quantise` (of the whole image once when a call
+  asks for more window pixels than the image has), and the statistics from
+  :func:`~.features.glcm_features`.
 
-The image is padded once in :class:`WindowImage`; each call then gathers the patches by flat
-index into arrays kept between calls, :data:`CHUNK` windows at a time (so they stay in the cache).
-300 windows of 11 x 11 pixels with the paper's five features (20, 17, 3, 6, 24) cost well under a
-millisecond.
+The sums over a window's pixels (box, ring, moments, pair counts) run in one compiled loop per
+window (:func:`_window_sums`) on the image padded once in :class:`WindowImage`; the rest works on
+:data:`CHUNK` windows at a time. 4,500 windows of 7 x 7 pixels with the paper's five features
+(20, 17, 3, 6, 24) cost a few milliseconds.
 
 The fallback of f06 (a window whose ring has no pixel with data) is the median of the pixels with
 data of all the call's patches; a caller that looks up several particle clouds at once, or each
@@ -40,13 +40,16 @@ import functools
 
 import numpy as np
 
+from ..jit import kernel
 from .features import (_DIRECTIONS, _GROUPS, N_FEATURES, FeatureConfig, _wanted, glcm_features, hu_moments,
                        patch_features, quantise)
 
 __all__ = ['WindowImage', 'window_features', 'WINDOW_SHAPE_FEATURES', 'CHUNK']
 
-#: Windows gathered and computed together: larger batches spill out of the cache and run slower.
+#: Windows computed together: larger batches spill out of the cache and run slower.
 CHUNK = 1024
+#: Co-occurrence cells (S^2 per window) computed together: bounds a chunk's memory for large S.
+_GLCM_CELLS = 1 << 18
 
 #: Features fixed by the mask alone: the same for every window of one size.
 WINDOW_SHAPE_FEATURES = frozenset({1, 2, 5, 10, 11, 12, 13})
@@ -96,6 +99,15 @@ class WindowImage:
             off = self._offsets[size] = (d[:, None] * self._width + d[None, :]).ravel()
         return off
 
+    def _centres(self, rows, cols, size: int) -> np.ndarray:
+        """Flat indices ``(K,)`` of the window centres in the padded image."""
+        h, w = self.shape
+        half = size // 2 + 1
+        # A centre far outside moves to where its patch is still entirely outside: the same (no) data.
+        r = np.clip(np.asarray(rows).astype(np.int64), -half - 1, h + half) + self.pad
+        c = np.clip(np.asarray(cols).astype(np.int64), -half - 1, w + half) + self.pad
+        return r * self._width + c
+
     def _flat_index(self, rows, cols, size: int) -> np.ndarray:
         """Flat indices ``(K, (size + 2)^2)`` of the patches' pixels in the padded image.
 
@@ -103,14 +115,9 @@ class WindowImage:
         page faults than the features themselves.
         """
         r, c = self._check(rows, cols, size)
-        h, w = self.shape
-        half = size // 2 + 1
-        # A centre far outside moves to where its patch is still entirely outside: the same (no) data.
-        r = np.clip(r.astype(np.int64), -half - 1, h + half) + self.pad
-        c = np.clip(c.astype(np.int64), -half - 1, w + half) + self.pad
         off = self._offsets_of(size)
         idx = self._buffer('idx', (len(r), off.size), np.int64)
-        np.add((r * self._width + c)[:, None], off[None, :], out=idx)
+        np.add(self._centres(r, c, size)[:, None], off[None, :], out=idx)
         return idx
 
     def _check(self, rows, cols, size: int) -> tuple[np.ndarray, np.ndarray]:
@@ -142,24 +149,6 @@ class WindowImage:
         """The ``(K, size + 2, size + 2)`` patches (box and ring) centred on pixels ``(rows, cols)``."""
         return self._gather(self._flat_index(rows, cols, size), size).copy()
 
-    def _levels_of(self, values: np.ndarray) -> np.ndarray:
-        """:func:`~.features.quantise` of ``values``, by comparison with the smallest intensity of
-        each grey level (found once from ``quantise`` itself, which is monotone in the intensity),
-        several times faster than the logarithms."""
-        if self._thresholds is None:
-            self._thresholds = _level_thresholds(self.config)
-        t = self._thresholds
-        flat = np.ascontiguousarray(values).reshape(-1)
-        if t.size > 16:
-            return np.searchsorted(t, flat, side='right').reshape(values.shape)
-        out = self._buffer('levels', flat.shape, np.int8)
-        above = self._buffer('above', flat.shape, np.bool_)
-        out.fill(0)
-        for v in t:
-            np.greater_equal(flat, v, out=above)
-            np.add(out, above.view(np.int8), out=out)
-        return out.reshape(values.shape)
-
     def features(self, rows, cols, size: int, features=None, groups=None, counts=None) -> np.ndarray:
         """Table 2 features ``(K, 30)`` (or ``(K, len(features))``) of the windows of odd ``size``
         centred on integer pixels ``(rows, cols)``; ``groups`` and ``counts`` (integers ``(K,)``) as
@@ -174,11 +163,10 @@ class WindowImage:
         ring = want & _GROUPS['background']
         background = np.empty(k) if ring else None
         has = np.empty(k, bool) if ring else None
-        if self._levels is None and want & _GROUPS['glcm'] and k * size * size > self._values.size:
-            # More window pixels than the image has: grey levels of the whole padded image, once.
-            self._levels = self._levels_of(self._values).copy()
-        for a in range(0, k, CHUNK):
-            b = min(k, a + CHUNK)
+        # The co-occurrence counts of a chunk, S^2 per window, stay within _GLCM_CELLS.
+        chunk = max(1, min(CHUNK, _GLCM_CELLS // self.config.glcm_levels ** 2)) if want & _GROUPS['glcm'] else CHUNK
+        for a in range(0, k, chunk):
+            b = min(k, a + chunk)
             self._chunk(r[a:b], c[a:b], size, want, out[a:b], None if background is None else background[a:b],
                         None if has is None else has[a:b])
         if ring:
@@ -203,91 +191,214 @@ class WindowImage:
 
     def _chunk(self, rows, cols, size, want, out, background, has) -> None:
         """Everything but the f06 fallback and f06-f09 for one chunk of windows (into ``out``)."""
-        idx = self._flat_index(rows, cols, size)
-        k = len(idx)
-        m = size + 2
-        p = self._gather(idx, size)
-        box = p[:, 1:-1, 1:-1]
-        n_px = float(size * size)
-        box_sum = box.sum(axis=(1, 2))
-        mean = box_sum / n_px
+        k = len(rows)
+        centres = self._centres(rows, cols, size)
+        flags = ((_STD if 4 in want else 0) | (_RING if background is not None else 0) |
+                 (_HU if want & _GROUPS['hu'] else 0))
+        glcm_cols = sorted(want & _GROUPS['glcm'])
+        if glcm_cols:
+            flags |= _GLCM
+            if self._thresholds is None:
+                self._thresholds = _level_thresholds(self.config)
+            s = self.config.glcm_levels
+            steps = np.array(_DIRECTIONS, np.int64) * self.config.glcm_distance
+            if self._levels is None and k * size * size > self._values.size:
+                # More window pixels than the image has: grey levels of the whole padded image, once.
+                self._levels = np.empty(self._values.size, np.int64)
+                _levels_into(self._values, self._thresholds, self._levels)
+        else:
+            s, steps = 1, np.zeros((0, 2), np.int64)
+        levels = self._levels if glcm_cols and self._levels is not None else _NO_LEVELS
+        box_sum, std = self._buffer('box_sum', (k,), np.float64), self._buffer('std', (k,), np.float64)
+        ring, ring_count = self._buffer('ring', (k,), np.float64), self._buffer('ring_count', (k,), np.int64)
+        mu = self._buffer('mu', (k, 7), np.float64)
+        counts = self._buffer('glcm', (k if glcm_cols else 0, s, s), np.float64)
+        thresholds = self._thresholds if glcm_cols else np.zeros(0)
+        _window_sums(self._values, levels, centres, self._width, size, thresholds, steps, flags,
+                     box_sum, std, ring, ring_count, mu, counts)
 
         shape = sorted(want & WINDOW_SHAPE_FEATURES)
         if shape:
             key = (size, tuple(shape))
             row = self._shape_rows.get(key)
             if row is None:
+                m = size + 2
                 mask = np.zeros((1, m, m), bool)
                 mask[0, 1:-1, 1:-1] = True
                 row = self._shape_rows[key] = patch_features(np.ones((1, m, m)), mask, self.config, shape)[0]
             out[:, shape] = row
-        out[:, 3] = mean
+        out[:, 3] = box_sum / float(size * size)
         if 4 in want:
-            dev = box.reshape(k, -1) - mean[:, None]
-            out[:, 4] = np.sqrt(np.clip(np.einsum('ki,ki->k', dev, dev) / n_px, 0.0, None))
-
+            out[:, 4] = std
         if background is not None:
-            ring_sum = p.sum(axis=(1, 2)) - box_sum
-            valid = p > 0
-            ring_cnt = (np.count_nonzero(valid, axis=(1, 2)) - np.count_nonzero(box > 0, axis=(1, 2))).astype(float)
             # Pixels without data are 0, so the sum over the whole ring is the sum over those with data.
-            np.greater(ring_cnt, 0.5, out=has)
-            np.divide(ring_sum, np.where(has, ring_cnt, 1.0), out=background)
-
-        if want & _GROUPS['hu']:
-            i = np.arange(size, dtype=np.float64)
-            row_w = box.sum(axis=2)       # weight per row (p runs along rows)
-            col_w = box.sum(axis=1)       # weight per column (q along columns)
+            np.greater(ring_count, 0, out=has)
+            np.divide(ring, np.where(has, ring_count, 1), out=background)
+        if flags & _HU:
             m00_safe = np.where(box_sum > 0, box_sum, 1.0)
-            dx = i[None, :] - (row_w @ i / m00_safe)[:, None]
-            dy = i[None, :] - (col_w @ i / m00_safe)[:, None]
-            dx2, dy2 = dx * dx, dy * dy
-            g = np.matmul(box, np.stack([dy, dy2], axis=2))     # (K, n, 2): sums along columns of f dy, f dy^2
-            mu = {'20': np.einsum('ki,ki->k', row_w, dx2), '02': np.einsum('ki,ki->k', col_w, dy2),
-                  '11': np.einsum('ki,ki->k', g[:, :, 0], dx), '30': np.einsum('ki,ki->k', row_w * dx2, dx),
-                  '03': np.einsum('ki,ki->k', col_w * dy2, dy), '21': np.einsum('ki,ki->k', g[:, :, 0], dx2),
-                  '12': np.einsum('ki,ki->k', g[:, :, 1], dx)}
             scale = {2: m00_safe ** 2, 3: m00_safe ** 2.5}
-            eta = {pq: v / scale[int(pq[0]) + int(pq[1])] for pq, v in mu.items()}
+            eta = {pq: mu[:, j] / scale[int(pq[0]) + int(pq[1])] for j, pq in enumerate(_MOMENTS)}
             out[:, 14:21] = hu_moments(eta)
-
-        glcm_cols = sorted(want & _GROUPS['glcm'])
         if glcm_cols:
-            s = self.config.glcm_levels
-            d = self.config.glcm_distance
-            if self._levels is None:
-                q = self._levels_of(box)
-            else:
-                q = self._buffer('q', idx.shape, self._levels.dtype)
-                np.take(self._levels, idx, out=q)
-                q = q.reshape(k, m, m)[:, 1:-1, 1:-1]
-            # Code of a pair (a, b) of window j: (j S + a) S + b; the first factor once per pixel.
-            first = self._buffer('first', q.shape, np.intp)
-            first[...] = q
-            first *= s
-            first += (np.arange(k, dtype=np.intp) * (s * s))[:, None, None]
-            parts = []
-            for dr, dc in _DIRECTIONS:
-                dr, dc = d * dr, d * dc
-                # Pixel a and its partner a + (dr, dc), both inside the box.
-                r0, r1 = max(0, -dr), size - max(0, dr)
+            out[:, glcm_cols] = glcm_features(counts, glcm_cols)
+
+
+_NO_LEVELS = np.zeros(0, np.int64)
+#: What :func:`_window_sums` computes besides the mean (bit flags).
+_STD, _RING, _HU, _GLCM = 1, 2, 4, 8
+#: The central moments :func:`_window_sums` returns, in its order.
+_MOMENTS = ('20', '02', '11', '30', '03', '21', '12')
+
+
+@kernel
+def _window_sums(values, levels, centres, width, size, thresholds, steps, flags,
+                 box_sum, std, ring, ring_count, mu, glcm):
+    """Per window of ``size`` x ``size`` pixels centred on flat index ``centres[k]`` of the padded
+    image ``values`` (rows ``width`` long; ``levels``: the grey levels of its pixels, or empty to
+    compute them here): the sum of the box; with the flags, the standard deviation
+    (f04), the sum and count of the ring's pixels with data (f06), the central moments ``mu_pq`` of
+    eq. (1) in the order of ``_MOMENTS`` (p along rows, about the intensity centroid; f14-f20), and the
+    symmetric co-occurrence counts ``(S, S)`` of the box's pixel pairs ``steps`` apart (f21-f30, grey
+    levels: how many ``thresholds`` each pixel reaches, i.e. :func:`~.features.quantise`)."""
+    n_px = size * size
+    half = size // 2
+    s = glcm.shape[1]
+    ss = s * s
+    q = np.zeros(n_px, np.int64)
+    qs = np.zeros(n_px, np.int64)
+    pairs = np.zeros(2 * ss, np.int64)
+    row_w = np.zeros(size)
+    col_w = np.zeros(size)
+    dy = np.zeros(size)
+    for k in range(centres.size):
+        top = centres[k] - half * width - half        # the box's first pixel
+        total = 0.0
+        for r in range(size):
+            row_w[r] = 0.0
+        for c in range(size):
+            col_w[c] = 0.0
+        for r in range(size):
+            base = top + r * width
+            for c in range(size):
+                v = values[base + c]
+                total += v
+                row_w[r] += v
+                col_w[c] += v
+        m = total / n_px
+        box_sum[k] = total
+        if flags & 1:
+            acc = 0.0
+            for r in range(size):
+                base = top + r * width
+                for c in range(size):
+                    d = values[base + c] - m
+                    acc += d * d
+            var = acc / n_px
+            std[k] = np.sqrt(var) if var > 0.0 else 0.0
+        if flags & 2:
+            rs = 0.0
+            rc = 0
+            for c in range(-1, size + 1):
+                for r in (-1, size):
+                    v = values[top + r * width + c]
+                    rs += v
+                    rc += v > 0.0
+            for r in range(size):
+                for c in (-1, size):
+                    v = values[top + r * width + c]
+                    rs += v
+                    rc += v > 0.0
+            ring[k] = rs
+            ring_count[k] = rc
+        if flags & 4:
+            m00 = total if total > 0.0 else 1.0
+            xc = 0.0
+            yc = 0.0
+            for i in range(size):
+                xc += row_w[i] * i
+                yc += col_w[i] * i
+            xc /= m00
+            yc /= m00
+            mu20 = mu02 = mu11 = mu30 = mu03 = mu21 = mu12 = 0.0
+            for c in range(size):
+                dy[c] = c - yc
+                mu02 += col_w[c] * dy[c] * dy[c]
+                mu03 += col_w[c] * dy[c] * dy[c] * dy[c]
+            for r in range(size):
+                dx = r - xc
+                mu20 += row_w[r] * dx * dx
+                mu30 += row_w[r] * dx * dx * dx
+                g1 = 0.0
+                g2 = 0.0
+                base = top + r * width
+                for c in range(size):
+                    v = values[base + c]
+                    g1 += v * dy[c]
+                    g2 += v * dy[c] * dy[c]
+                mu11 += g1 * dx
+                mu21 += g1 * dx * dx
+                mu12 += g2 * dx
+            mu[k, 0] = mu20
+            mu[k, 1] = mu02
+            mu[k, 2] = mu11
+            mu[k, 3] = mu30
+            mu[k, 4] = mu03
+            mu[k, 5] = mu21
+            mu[k, 6] = mu12
+        if flags & 8:
+            for r in range(size):
+                base = top + r * width
+                for c in range(size):
+                    v = levels[base + c] if levels.size else _level(values[base + c], thresholds)
+                    q[r * size + c] = v
+                    qs[r * size + c] = v * s
+            # Two count matrices, alternate columns: consecutive increments of one cell (common in a
+            # uniform window) would otherwise wait on each other.
+            pairs.fill(0)
+            n_pairs = 0
+            for j in range(steps.shape[0]):
+                dr, dc = steps[j, 0], steps[j, 1]
+                off = dr * size + dc
                 c0, c1 = max(0, -dc), size - max(0, dc)
-                if r1 > r0 and c1 > c0:
-                    parts.append((slice(r0, r1), slice(c0, c1), slice(r0 + dr, r1 + dr), slice(c0 + dc, c1 + dc)))
-            if parts:
-                n_codes = sum(k * (p_[0].stop - p_[0].start) * (p_[1].stop - p_[1].start) for p_ in parts)
-                codes = self._buffer('codes', (n_codes,), np.intp)
-                pos = 0
-                for ra, ca, rb, cb in parts:
-                    a = first[:, ra, ca]
-                    np.add(a, q[:, rb, cb], out=codes[pos:pos + a.size].reshape(a.shape))
-                    pos += a.size
-                h = np.bincount(codes, minlength=k * s * s).reshape(k, s, s)
-                h = h + h.transpose(0, 2, 1)
-            else:  # no pair inside the box: the core pairs the region's first pixel with itself
-                h = np.zeros((k, s, s), np.int64)
-                h[np.arange(k), q[:, 0, 0], q[:, 0, 0]] = 1
-            out[:, glcm_cols] = glcm_features(h, glcm_cols)
+                for r in range(max(0, -dr), size - max(0, dr)):
+                    for i in range(r * size + c0, r * size + c1):
+                        pairs[(i & 1) * ss + qs[i] + q[i + off]] += 1
+                    n_pairs += c1 - c0 if c1 > c0 else 0
+            if n_pairs == 0:   # no pair inside the box: the core pairs the region's first pixel with itself
+                glcm[k] = 0.0
+                glcm[k, q[0], q[0]] = 1.0
+            else:
+                for a in range(s):
+                    for b in range(s):
+                        ab, ba = a * s + b, b * s + a
+                        glcm[k, a, b] = pairs[ab] + pairs[ss + ab] + pairs[ba] + pairs[ss + ba]
+
+
+@kernel
+def _level(v, thresholds):
+    """The grey level of intensity ``v``: how many ``thresholds`` (ascending) it reaches, i.e.
+    ``searchsorted(thresholds, v, 'right')``, which is :func:`~.features.quantise` of ``v``."""
+    n_t = thresholds.size
+    if n_t <= 16:                     # a few thresholds: count them without branches
+        lev = 0
+        for t in range(n_t):
+            lev += thresholds[t] <= v
+        return lev
+    lev, hi = 0, n_t
+    while lev < hi:
+        mid = (lev + hi) // 2
+        if thresholds[mid] <= v:
+            lev = mid + 1
+        else:
+            hi = mid
+    return lev
+
+
+@kernel
+def _levels_into(values, thresholds, out):
+    """:func:`_level` of every value (1-D) into ``out``."""
+    for i in range(values.size):
+        out[i] = _level(values[i], thresholds)
 
 
 @functools.lru_cache(maxsize=16)

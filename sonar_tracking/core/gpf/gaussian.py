@@ -29,6 +29,8 @@ next prediction missed the target (measured: ``docs/experiments/2026-11-21-fls-g
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..tracking.motion import ConstantVelocity
@@ -105,14 +107,32 @@ def condition_velocity(prior_mean: np.ndarray, prior_cov: np.ndarray, position: 
     return mean, 0.5 * (cov + cov.T)
 
 
+@functools.lru_cache(maxsize=8)
+def _motion(dt: float, q: float) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """``F``, ``Q`` and a factor of ``Q`` (None when ``Q`` is 0), read-only: every track of a frame
+    shares them."""
+    F, Q = _CV.transition(dt), white_noise_acceleration(dt, q)
+    L = _factor(Q) if np.any(Q) else None
+    for a in (F, Q, L):
+        if a is not None:
+            a.setflags(write=False)
+    return F, Q, L
+
+
 def motion_matrices(dt: float, q: float) -> tuple[np.ndarray, np.ndarray]:
-    """``F`` (ESC eq. 3) and ``Q`` (white-noise acceleration of PSD ``q``) over ``dt`` seconds."""
-    return _CV.transition(dt), white_noise_acceleration(dt, q)
+    """``F`` (ESC eq. 3) and ``Q`` (white-noise acceleration of PSD ``q``) over ``dt`` seconds
+    (read-only arrays)."""
+    return _motion(float(dt), float(q))[:2]
 
 
-def propagate(particles: np.ndarray, F: np.ndarray, Q: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Sample ``p(x_{t+1} | x_n)`` for every particle ``(K, 4)``: ``F x_n + w_n``, ``w_n ~ N(0, Q)``."""
-    noise = rng.standard_normal(particles.shape) @ _factor(Q).T if np.any(Q) else 0.0
+def propagate(particles: np.ndarray, F: np.ndarray, Q: np.ndarray, rng: np.random.Generator,
+              factor: np.ndarray | None = None) -> np.ndarray:
+    """Sample ``p(x_{t+1} | x_n)`` for every particle ``(K, 4)``: ``F x_n + w_n``, ``w_n ~ N(0, Q)``
+    (``factor``: a Cholesky factor of ``Q``, if the caller has it)."""
+    if not np.any(Q):
+        noise = 0.0
+    else:
+        noise = rng.standard_normal(particles.shape) @ (_factor(Q) if factor is None else factor).T
     return particles @ F.T + noise
 
 
@@ -120,8 +140,8 @@ def predict(mean: np.ndarray, cov: np.ndarray, dt: float, q: float, k: int, rng:
             ) -> tuple[np.ndarray, np.ndarray]:
     """GPF time update (eqs. 9-12): sample the posterior, move each particle by the motion model,
     and return the predicted mean (eq. 10) and covariance (eq. 11)."""
-    F, Q = motion_matrices(dt, q)
-    moved = propagate(sample_gaussian(mean, cov, k, rng), F, Q, rng)
+    F, Q, L = _motion(float(dt), float(q))
+    moved = propagate(sample_gaussian(mean, cov, k, rng), F, Q, rng, L)
     return weighted_moments(moved)
 
 
