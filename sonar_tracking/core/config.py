@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import array
 import dataclasses
+import functools
 import math
 import typing
 from dataclasses import dataclass
@@ -118,12 +119,19 @@ def _leaf_type(annotation: Any) -> type:
     return annotation
 
 
+@functools.lru_cache(maxsize=None)
+def _hints(cls: type) -> dict[str, Any]:
+    """``typing.get_type_hints`` of a config class, once per class (it is slow, and a study builds
+    configurations in every run)."""
+    return typing.get_type_hints(cls)
+
+
 @dataclass(frozen=True)
 class Config:
     """Base of all component configurations: validates in construction, flattens to settings."""
 
     def __post_init__(self) -> None:
-        hints = typing.get_type_hints(type(self))
+        hints = _hints(type(self))
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
             if isinstance(value, Config):
@@ -141,7 +149,7 @@ class Config:
     @classmethod
     def settings(cls, prefix: str = '') -> Iterator[Setting]:
         """Yield every leaf setting with its dotted name, defaults taken from the class."""
-        hints = typing.get_type_hints(cls)
+        hints = _hints(cls)
         for f in dataclasses.fields(cls):
             t = hints[f.name]
             if isinstance(t, type) and issubclass(t, Config):

@@ -23,7 +23,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+
+from ..jit import kernel
 
 __all__ = ['PolarWindow', 'scmde', 'sunflower']
 
@@ -72,6 +73,78 @@ def sunflower(n: int) -> np.ndarray:
 _DISC = sunflower(64)
 
 
+@kernel
+def _nth_neighbour(pts, n, out):
+    """Distance from each point of ``pts (M, 2)`` to its ``n``-th nearest other point (``n < M``),
+    into ``out``: the same numbers as ``cKDTree(pts).query(pts, n + 1)[0][:, n]``, found on a grid of
+    about three points per cell, searched in growing square rings until no farther cell can hold a
+    nearer point (compiled)."""
+    m = pts.shape[0]
+    x0, x1, y0, y1 = pts[0, 0], pts[0, 0], pts[0, 1], pts[0, 1]
+    for i in range(m):
+        x0, x1 = min(x0, pts[i, 0]), max(x1, pts[i, 0])
+        y0, y1 = min(y0, pts[i, 1]), max(y1, pts[i, 1])
+    sx, sy = x1 - x0, y1 - y0
+    cell = np.sqrt(3.0 * sx * sy / m)
+    if not cell > 0.0:                        # points on a line, or all in one place
+        cell = max(max(sx, sy) / m, 1e-9)
+    nx, ny = int(sx / cell) + 1, int(sy / cell) + 1
+    while nx * ny > 4 * m + 4:                # a long thin spread: fewer, larger cells
+        cell *= 1.5
+        nx, ny = int(sx / cell) + 1, int(sy / cell) + 1
+    # Points by cell (counting sort).
+    cell_of = np.empty(m, np.int64)
+    start = np.zeros(nx * ny + 1, np.int64)
+    for i in range(m):
+        c = min(int((pts[i, 0] - x0) / cell), nx - 1) * ny + min(int((pts[i, 1] - y0) / cell), ny - 1)
+        cell_of[i] = c
+        start[c + 1] += 1
+    for c in range(nx * ny):
+        start[c + 1] += start[c]
+    fill = start[:-1].copy()
+    items = np.empty(m, np.int64)
+    for i in range(m):
+        items[fill[cell_of[i]]] = i
+        fill[cell_of[i]] += 1
+    margin = 1e-9 * (sx + sy + cell)
+    best = np.empty(n + 1)
+    for i in range(m):
+        px, py = pts[i, 0], pts[i, 1]
+        cx, cy = cell_of[i] // ny, cell_of[i] % ny
+        best[:] = np.inf
+        r = 0
+        while True:
+            for gx in range(max(cx - r, 0), min(cx + r, nx - 1) + 1):
+                for gy in range(max(cy - r, 0), min(cy + r, ny - 1) + 1):
+                    if abs(gx - cx) != r and abs(gy - cy) != r:
+                        continue                     # searched in an earlier ring
+                    c = gx * ny + gy
+                    for a in range(start[c], start[c + 1]):
+                        j = items[a]
+                        dx, dy = px - pts[j, 0], py - pts[j, 1]
+                        d2 = dx * dx + dy * dy
+                        if d2 < best[n]:
+                            k = n
+                            while k > 0 and best[k - 1] > d2:
+                                best[k] = best[k - 1]
+                                k -= 1
+                            best[k] = d2
+            # Every cell not yet searched lies beyond the square's nearest side (less a rounding margin).
+            gap = np.inf
+            if cx - r > 0:
+                gap = min(gap, px - x0 - (cx - r) * cell)
+            if cx + r < nx - 1:
+                gap = min(gap, x0 + (cx + r + 1) * cell - px)
+            if cy - r > 0:
+                gap = min(gap, py - y0 - (cy - r) * cell)
+            if cy + r < ny - 1:
+                gap = min(gap, y0 + (cy + r + 1) * cell - py)
+            if gap == np.inf or best[n] <= (gap - margin) ** 2 and gap > margin:
+                break
+            r += 1
+        out[i] = np.sqrt(best[n])
+
+
 def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None) -> np.ndarray:
     """Clutter density [1/m^2] at each of ``points`` ``(N, 2)`` (sensor-frame metres).
 
@@ -87,8 +160,8 @@ def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None)
     n = min(order, m - 1)
     if n < 2:
         return np.zeros(m)
-    dist, _ = cKDTree(pts).query(pts, k=n + 1)
-    radius = dist[:, n]
+    radius = np.empty(m)
+    _nth_neighbour(np.ascontiguousarray(pts), n, radius)
     area = math.pi * radius ** 2
     if window is not None:
         # Only discs that may cross the border need the sunflower test.

@@ -47,3 +47,31 @@ def test_sparse_scans_use_the_count_estimate():
     pts = np.array([[2500.0, 100.0], [2600.0, 300.0]])
     assert scmde(pts, 6, WINDOW) == pytest.approx([2 / WINDOW.area] * 2)
     assert len(scmde(np.zeros((0, 2)), 6, WINDOW)) == 0
+
+
+@pytest.mark.parametrize('kind', ['uniform', 'line', 'coincident', 'cluster_and_outlier', 'thin', 'far_from_origin'])
+def test_nth_neighbour_distances_equal_a_kd_tree_query(kind):
+    """The grid search returns exactly what scipy's KD-tree query returns, also on degenerate spreads."""
+    from scipy.spatial import cKDTree
+
+    from sonar_tracking.core.detection.scmde import _nth_neighbour
+    rng = np.random.default_rng(len(kind))
+    for m in (3, 8, 57, 600, 2500):
+        if kind == 'uniform':
+            p = rng.uniform(0, 3000, (m, 2))
+        elif kind == 'line':
+            p = np.column_stack([rng.uniform(0, 3000, m), np.full(m, 5.0)])
+        elif kind == 'coincident':
+            p = np.round(rng.normal(0, 3, (m, 2)))
+        elif kind == 'cluster_and_outlier':
+            p = np.concatenate([rng.normal(0, 0.01, (m - 1, 2)), [[1e4, 1e4]]])
+        elif kind == 'thin':
+            p = rng.uniform(-1, 1, (m, 2)) * [1e5, 1e-3]
+        else:
+            p = np.round(rng.uniform(0, 50, (m, 2))) * 0.1 + 1e6
+        for n in sorted({2, 6, min(m - 1, 20)}):
+            if n >= m:
+                continue
+            out = np.empty(m)
+            _nth_neighbour(p, n, out)
+            np.testing.assert_array_equal(out, cKDTree(p).query(p, k=n + 1)[0][:, n])
