@@ -202,7 +202,8 @@ def _in_box(z, i, lo, hi, t):
 
 def _strip_order(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
     """The measurements of the strip search sorted by (strip, second coordinate): ``order``, their
-    sort ``keys`` and the strip geometry ``x0, width, n_strips, y0, span_y``."""
+    sort ``keys``, the start in ``keys`` of each of ``2 N`` buckets of equal key width from ``k0`` on
+    (``table``, ``k0``, ``bucket``) and the strip geometry ``x0, width, n_strips, y0, span_y``."""
     n_meas = z.shape[0]
     zx = z[:, 0]
     zy = z[:, 1] if z.shape[1] > 1 else np.zeros(n_meas)
@@ -215,16 +216,43 @@ def _strip_order(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
     strip = np.minimum(np.floor((zx - x0) / width).astype(np.intp), n_strips - 1)
     key = strip * span_y + (zy - y0)
     order = np.argsort(key, kind='stable')
-    return order, key[order], float(x0), float(width), n_strips, float(y0), float(span_y)
+    keys = key[order]
+    # Buckets of equal key width: where each bucket's keys start, so a search starts near its answer.
+    n_buckets = 2 * n_meas
+    bucket = (keys[-1] - keys[0]) / n_buckets + 1e-300
+    table = np.searchsorted(keys, keys[0] + bucket * np.arange(n_buckets + 1), side='left')
+    table[-1] = n_meas
+    return (order, keys, table, float(keys[0]), float(bucket), float(x0), float(width), n_strips, float(y0),
+            float(span_y))
 
 
 @kernel
-def _strip_range(keys, st, span_y, ylo, yhi):
+def _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi):
     """Positions ``[first, end)`` in ``keys`` of the measurements of strip ``st`` whose second
     coordinate (from its minimum) lies in ``[ylo, yhi]`` (compiled)."""
-    first = np.searchsorted(keys, st * span_y + ylo, side='left')
-    end = np.searchsorted(keys, st * span_y + yhi, side='right')
+    first = _search(keys, table, k0, bucket, st * span_y + ylo, False)
+    end = _search(keys, table, k0, bucket, st * span_y + yhi, True)
     return first, max(end, first)
+
+
+@kernel
+def _search(keys, table, k0, bucket, x, right):
+    """``np.searchsorted(keys, x, 'right' if right else 'left')``, searching only the buckets
+    around ``x``'s own (one either side absorbs the rounding of the bucket arithmetic; compiled)."""
+    n_buckets = table.size - 1
+    b = (x - k0) / bucket
+    if not b >= 0.0:          # below the first key, or NaN
+        b = 0.0
+    b = min(b, n_buckets - 1.0)
+    lo = table[max(int(b) - 1, 0)]
+    hi = table[min(int(b) + 2, n_buckets)]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if keys[mid] < x or (right and keys[mid] == x):
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo
 
 
 @kernel
@@ -245,20 +273,20 @@ def _y_range(lo, hi, t, y0, span_y):
 
 
 @kernel
-def _strip_counts(lo, hi, order, keys, x0, width, n_strips, y0, span_y, counts):
+def _strip_counts(lo, hi, order, keys, table, k0, bucket, x0, width, n_strips, y0, span_y, counts):
     """Per track, the measurements of the strip search (before the exact box test) into ``counts``."""
     for t in range(lo.shape[0]):
         s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
         ylo, yhi = _y_range(lo, hi, t, y0, span_y)
         n = 0
         for st in range(s_lo, s_hi + 1):
-            first, end = _strip_range(keys, st, span_y, ylo, yhi)
+            first, end = _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi)
             n += end - first
         counts[t] = n
 
 
 @kernel
-def _strip_pairs(lo, hi, z, order, keys, x0, width, n_strips, y0, span_y, track, meas):
+def _strip_pairs(lo, hi, z, order, keys, table, k0, bucket, x0, width, n_strips, y0, span_y, track, meas):
     """The strip search's pairs inside their track's box, by track, then strip, then key, into
     ``track``, ``meas``; returns their number."""
     k = 0
@@ -266,7 +294,7 @@ def _strip_pairs(lo, hi, z, order, keys, x0, width, n_strips, y0, span_y, track,
         s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
         ylo, yhi = _y_range(lo, hi, t, y0, span_y)
         for st in range(s_lo, s_hi + 1):
-            first, end = _strip_range(keys, st, span_y, ylo, yhi)
+            first, end = _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi)
             for p in range(first, end):
                 i = order[p]
                 if _in_box(z, i, lo, hi, t):
