@@ -354,7 +354,7 @@ class ActiveDetector:
             c, s = math.cos(pose[2]), math.sin(pose[2])
             fx, fy = focus_xy[0] - pose[0], focus_xy[1] - pose[1]
             sx, sy = c * fx + s * fy, -s * fx + c * fy
-            inside = window.contains(sx + radius * _DISC[:, 0], sy + radius * _DISC[:, 1]).mean()
+            inside = float(window.disc_fraction(np.array([sx]), np.array([sy]), np.array([radius]), _DISC)[0])
             if inside > 0:
                 near = (xy[:, 0] - focus_xy[0]) ** 2 + (xy[:, 1] - focus_xy[1]) ** 2 <= radius ** 2
                 return float(near.sum() / (math.pi * radius ** 2 * inside))

@@ -55,11 +55,53 @@ class PolarWindow:
 
     def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether sensor-frame points lie in the window."""
-        r = np.hypot(x, y)
-        b = np.arctan2(y, x)
-        mid = 0.5 * (self.b_min + self.b_max)
-        off = np.remainder(b - mid + math.pi, 2 * math.pi) - math.pi
-        return (r >= self.r_min) & (r <= self.r_max) & (np.abs(off) <= 0.5 * (self.b_max - self.b_min))
+        x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
+        out = np.empty(x.shape, dtype=bool)
+        _contains_into(np.ascontiguousarray(x).reshape(-1), np.ascontiguousarray(y).reshape(-1),
+                       self.r_min, self.r_max, self.b_min, self.b_max, out.reshape(-1))
+        return out
+
+    def disc_fraction(self, x: np.ndarray, y: np.ndarray, radius: np.ndarray, disc: np.ndarray | None = None
+                      ) -> np.ndarray:
+        """The fraction of each disc of ``radius`` centred on sensor-frame ``(x, y)`` (1-D arrays)
+        inside the window: of the points ``disc (P, 2)`` on the unit disc (default :data:`DISC`),
+        scaled and moved onto it, the share :meth:`contains` holds."""
+        x, y, radius = (np.ascontiguousarray(v, dtype=float) for v in (x, y, radius))
+        out = np.empty(x.shape)
+        _disc_fraction_into(x, y, radius, DISC if disc is None else np.ascontiguousarray(disc, dtype=float),
+                            self.r_min, self.r_max, self.b_min, self.b_max, out)
+        return out
+
+
+@kernel
+def _inside(x, y, r_min, r_max, b_min, b_max):
+    """Whether the point ``(x, y)`` lies in the polar window (compiled scalar): range within
+    ``[r_min, r_max]`` and bearing, wrapped about the window's middle, within half its span."""
+    r = np.hypot(x, y)
+    a = np.arctan2(y, x) - 0.5 * (b_min + b_max) + np.pi
+    off = np.fmod(a, 2 * np.pi)                   # np.remainder(a, 2 pi), as numpy computes it
+    if off != 0.0 and off < 0.0:
+        off += 2 * np.pi
+    off -= np.pi
+    return r >= r_min and r <= r_max and abs(off) <= 0.5 * (b_max - b_min)
+
+
+@kernel
+def _contains_into(x, y, r_min, r_max, b_min, b_max, out):
+    """:func:`_inside` of every point (1-D arrays) into ``out``."""
+    for i in range(x.size):
+        out[i] = _inside(x[i], y[i], r_min, r_max, b_min, b_max)
+
+
+@kernel
+def _disc_fraction_into(x, y, radius, disc, r_min, r_max, b_min, b_max, out):
+    """Per disc, the share of the unit-disc points ``disc (P, 2)``, scaled by its radius about its
+    centre, that :func:`_inside` holds, into ``out``."""
+    for i in range(x.size):
+        n = 0
+        for j in range(disc.shape[0]):
+            n += _inside(x[i] + radius[i] * disc[j, 0], y[i] + radius[i] * disc[j, 1], r_min, r_max, b_min, b_max)
+        out[i] = n / disc.shape[0]
 
 
 def sunflower(n: int) -> np.ndarray:
@@ -70,7 +112,8 @@ def sunflower(n: int) -> np.ndarray:
     return np.stack([rad * np.cos(ang), rad * np.sin(ang)], axis=1)
 
 
-_DISC = sunflower(64)
+#: The points of the edge correction's disc test.
+DISC = sunflower(64)
 
 
 @kernel
@@ -167,9 +210,7 @@ def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None)
         # Only discs that may cross the border need the sunflower test.
         near = np.nonzero(radius > window.clearance(pts[:, 0], pts[:, 1]))[0]
         if len(near):
-            sx = pts[near, 0:1] + radius[near, None] * _DISC[None, :, 0]
-            sy = pts[near, 1:2] + radius[near, None] * _DISC[None, :, 1]
-            inside = window.contains(sx, sy).mean(axis=1)
-            area[near] *= np.maximum(inside, 1.0 / len(_DISC))
+            inside = window.disc_fraction(pts[near, 0], pts[near, 1], radius[near])
+            area[near] *= np.maximum(inside, 1.0 / len(DISC))
     # Coincident points would give a zero area; a floor keeps the estimate finite.
     return (n - 1) / np.maximum(area, 1e-12)
