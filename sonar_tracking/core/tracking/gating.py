@@ -114,6 +114,7 @@ class BoxSearch:
                      'dense' if n_tracks * n_meas <= _BRUTE_FORCE_PAIRS else 'strips')
         self._strips: tuple | None = None
         self._counts: np.ndarray | None = None
+        self._ranges: np.ndarray | None = None
 
     def _search(self) -> tuple:
         if self._strips is None:
@@ -136,7 +137,7 @@ class BoxSearch:
             return track[:k], meas[:k]
         counts = self.counts()
         track, meas = np.empty(int(counts.sum()), dtype=np.intp), np.empty(int(counts.sum()), dtype=np.intp)
-        k = _strip_pairs(lo, hi, z, *self._search(), track, meas)
+        k = _strip_pairs(lo, hi, z, *self._search(), self._ranges, track, meas)
         return track[:k], meas[:k]
 
     def counts(self) -> np.ndarray:
@@ -153,7 +154,8 @@ class BoxSearch:
             return counts
         if self._counts is None:
             self._counts = np.empty(n_tracks, dtype=np.intp)
-            _strip_counts(self.lo, self.hi, *self._search(), self._counts)
+            self._ranges = np.empty((n_tracks, _KEPT_RANGES, 2), dtype=np.intp)
+            _strip_counts(self.lo, self.hi, *self._search(), self._counts, self._ranges)
         return self._counts
 
 
@@ -212,18 +214,40 @@ def _strip_order(z: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> tuple:
     n_strips = int(span_x // width) + 1
     y0 = zy.min()
     span_y = zy.max() - y0 + 1.0
-    # The same expression bins points and box edges, so a point on an edge lands in the edge's strip.
-    strip = np.minimum(np.floor((zx - x0) / width).astype(np.intp), n_strips - 1)
-    key = strip * span_y + (zy - y0)
+    key = np.empty(n_meas)
+    _strip_keys(z, float(x0), float(width), n_strips, float(y0), float(span_y), key)
     order = np.argsort(key, kind='stable')
     keys = key[order]
     # Buckets of equal key width: where each bucket's keys start, so a search starts near its answer.
-    n_buckets = 2 * n_meas
-    bucket = (keys[-1] - keys[0]) / n_buckets + 1e-300
-    table = np.searchsorted(keys, keys[0] + bucket * np.arange(n_buckets + 1), side='left')
-    table[-1] = n_meas
+    bucket = (keys[-1] - keys[0]) / (2 * n_meas) + 1e-300
+    table = np.empty(2 * n_meas + 1, dtype=np.intp)
+    _bucket_table(keys, bucket, table)
     return (order, keys, table, float(keys[0]), float(bucket), float(x0), float(width), n_strips, float(y0),
             float(span_y))
+
+
+@kernel
+def _strip_keys(z, x0, width, n_strips, y0, span_y, key):
+    """Sort key of each measurement: its strip times ``span_y`` plus its second coordinate from
+    ``y0`` (compiled)."""
+    for i in range(z.shape[0]):
+        # The same expression bins points and box edges, so a point on an edge lands in the edge's strip.
+        st = min(int(np.floor((z[i, 0] - x0) / width)), n_strips - 1)
+        key[i] = st * span_y + ((z[i, 1] - y0) if z.shape[1] > 1 else 0.0)
+
+
+@kernel
+def _bucket_table(keys, bucket, table):
+    """``table[b]``: the first of the sorted ``keys`` at or above ``keys[0] + b bucket``, i.e.
+    ``np.searchsorted(keys, keys[0] + bucket * np.arange(B), 'left')``; the last entry is ``len(keys)``
+    (compiled)."""
+    j, n = 0, keys.size
+    for b in range(table.size - 1):
+        edge = keys[0] + bucket * b
+        while j < n and keys[j] < edge:
+            j += 1
+        table[b] = j
+    table[table.size - 1] = n
 
 
 @kernel
@@ -272,29 +296,40 @@ def _y_range(lo, hi, t, y0, span_y):
     return 0.0, 0.0
 
 
+#: Strip ranges kept per track between counting and listing the pairs (a box over more strips
+#: searches them again): bounds the memory at this many per track.
+_KEPT_RANGES = 4
+
+
 @kernel
-def _strip_counts(lo, hi, order, keys, table, k0, bucket, x0, width, n_strips, y0, span_y, counts):
-    """Per track, the measurements of the strip search (before the exact box test) into ``counts``."""
+def _strip_counts(lo, hi, order, keys, table, k0, bucket, x0, width, n_strips, y0, span_y, counts, ranges):
+    """Per track, the measurements of the strip search (before the exact box test) into ``counts``,
+    and the positions ``[first, end)`` of its first ``_KEPT_RANGES`` strips into ``ranges (T, K, 2)``."""
     for t in range(lo.shape[0]):
         s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
         ylo, yhi = _y_range(lo, hi, t, y0, span_y)
         n = 0
         for st in range(s_lo, s_hi + 1):
             first, end = _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi)
+            if st - s_lo < ranges.shape[1]:
+                ranges[t, st - s_lo, 0], ranges[t, st - s_lo, 1] = first, end
             n += end - first
         counts[t] = n
 
 
 @kernel
-def _strip_pairs(lo, hi, z, order, keys, table, k0, bucket, x0, width, n_strips, y0, span_y, track, meas):
+def _strip_pairs(lo, hi, z, order, keys, table, k0, bucket, x0, width, n_strips, y0, span_y, ranges, track, meas):
     """The strip search's pairs inside their track's box, by track, then strip, then key, into
-    ``track``, ``meas``; returns their number."""
+    ``track``, ``meas`` (strip ranges from :func:`_strip_counts`); returns their number."""
     k = 0
     for t in range(lo.shape[0]):
         s_lo, s_hi = _strips_of(lo, hi, t, x0, width, n_strips)
         ylo, yhi = _y_range(lo, hi, t, y0, span_y)
         for st in range(s_lo, s_hi + 1):
-            first, end = _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi)
+            if st - s_lo < ranges.shape[1]:
+                first, end = ranges[t, st - s_lo, 0], ranges[t, st - s_lo, 1]
+            else:
+                first, end = _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi)
             for p in range(first, end):
                 i = order[p]
                 if _in_box(z, i, lo, hi, t):

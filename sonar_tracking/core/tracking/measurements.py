@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..jit import kernel
 from .errors import TrackingInputError
 
 __all__ = ['Rejection', 'as_measurements', 'check_measurements']
@@ -75,12 +76,11 @@ def check_measurements(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> tuple[n
         return np.ones(n, dtype=bool), []
     Rf = R.reshape(n, d * d)
     with np.errstate(invalid='ignore', over='ignore'):
-        finite = np.isfinite(z).all(axis=1) & np.isfinite(Rf).all(axis=1)
         if d == 2:
-            a, b1, b2, c = Rf.T
-            sym = np.abs(b1 - b2) <= 1e-9 * np.maximum(np.abs(a), np.abs(c))
-            pd = (a > 0) & (a * c - b1 * b2 > 0)
+            finite, sym, pd = np.empty(n, bool), np.empty(n, bool), np.empty(n, bool)
+            _check_2d(z, np.ascontiguousarray(Rf), finite, sym, pd)
         else:
+            finite = np.isfinite(z).all(axis=1) & np.isfinite(Rf).all(axis=1)
             Rs = np.where(finite[:, None, None], R, 0.0)
             sym = (np.abs(Rs - Rs.swapaxes(1, 2)).reshape(n, -1).max(axis=1, initial=0.0)
                    <= 1e-9 * np.abs(Rs).reshape(n, -1).max(axis=1, initial=0.0))
@@ -104,6 +104,19 @@ def check_measurements(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> tuple[n
             reason = f'clutter density {float(rho[i])!r} must be finite and > 0'
         rejections.append(Rejection(int(i), reason))
     return keep, rejections
+
+
+@kernel
+def _check_2d(z, Rf, finite, sym, pd):
+    """Per row of ``z (N, 2)`` and ``Rf (N, 4)`` (flattened 2 x 2 covariances ``a, b1, b2, c``):
+    all six numbers finite, ``|b1 - b2| <= 1e-9 max(|a|, |c|)``, and ``a > 0``, ``a c - b1 b2 > 0``
+    (compiled)."""
+    for i in range(z.shape[0]):
+        a, b1, b2, c = Rf[i, 0], Rf[i, 1], Rf[i, 2], Rf[i, 3]
+        finite[i] = (np.isfinite(z[i, 0]) and np.isfinite(z[i, 1]) and np.isfinite(a) and np.isfinite(b1)
+                     and np.isfinite(b2) and np.isfinite(c))
+        sym[i] = abs(b1 - b2) <= 1e-9 * max(abs(a), abs(c))
+        pd[i] = a > 0 and a * c - b1 * b2 > 0
 
 
 def _all_usable(z: np.ndarray, R: np.ndarray, rho: np.ndarray) -> bool:
