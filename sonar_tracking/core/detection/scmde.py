@@ -53,12 +53,17 @@ class PolarWindow:
         to_sides = r * np.minimum(np.sin(np.clip(off, 0.0, math.pi / 2)), np.sin(np.clip(span - off, 0.0, math.pi / 2)))
         return np.clip(np.minimum(np.minimum(r - self.r_min, self.r_max - r), to_sides), 0.0, None)
 
+    def _bearing_test(self) -> tuple[float, float, float]:
+        """``cos``, ``sin`` of the middle bearing and ``cos`` of half the span (-2 for a full circle)."""
+        mid, half = 0.5 * (self.b_min + self.b_max), 0.5 * (self.b_max - self.b_min)
+        return math.cos(mid), math.sin(mid), (math.cos(half) if half < math.pi else -2.0)
+
     def contains(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
         """Whether sensor-frame points lie in the window."""
         x, y = np.broadcast_arrays(np.asarray(x, dtype=float), np.asarray(y, dtype=float))
         out = np.empty(x.shape, dtype=bool)
         _contains_into(np.ascontiguousarray(x).reshape(-1), np.ascontiguousarray(y).reshape(-1),
-                       self.r_min, self.r_max, self.b_min, self.b_max, out.reshape(-1))
+                       self.r_min, self.r_max, *self._bearing_test(), out.reshape(-1))
         return out
 
     def disc_fraction(self, x: np.ndarray, y: np.ndarray, radius: np.ndarray, disc: np.ndarray | None = None
@@ -69,38 +74,35 @@ class PolarWindow:
         x, y, radius = (np.ascontiguousarray(v, dtype=float) for v in (x, y, radius))
         out = np.empty(x.shape)
         _disc_fraction_into(x, y, radius, DISC if disc is None else np.ascontiguousarray(disc, dtype=float),
-                            self.r_min, self.r_max, self.b_min, self.b_max, out)
+                            self.r_min, self.r_max, *self._bearing_test(), out)
         return out
 
 
 @kernel
-def _inside(x, y, r_min, r_max, b_min, b_max):
-    """Whether the point ``(x, y)`` lies in the polar window (compiled scalar): range within
-    ``[r_min, r_max]`` and bearing, wrapped about the window's middle, within half its span."""
-    r = np.hypot(x, y)
-    a = np.arctan2(y, x) - 0.5 * (b_min + b_max) + np.pi
-    off = np.fmod(a, 2 * np.pi)                   # np.remainder(a, 2 pi), as numpy computes it
-    if off != 0.0 and off < 0.0:
-        off += 2 * np.pi
-    off -= np.pi
-    return r >= r_min and r <= r_max and abs(off) <= 0.5 * (b_max - b_min)
+def _inside(x, y, r_min, r_max, cos_mid, sin_mid, cos_half):
+    """Whether the point ``(x, y)`` lies in the polar window (compiled scalar): its range within
+    ``[r_min, r_max]`` and its bearing within half the span of the middle bearing, i.e. the cosine
+    of the angle to the middle direction ``(cos_mid, sin_mid)`` at least ``cos_half``."""
+    r = np.sqrt(x * x + y * y)
+    return r >= r_min and r <= r_max and x * cos_mid + y * sin_mid >= r * cos_half
 
 
 @kernel
-def _contains_into(x, y, r_min, r_max, b_min, b_max, out):
+def _contains_into(x, y, r_min, r_max, cos_mid, sin_mid, cos_half, out):
     """:func:`_inside` of every point (1-D arrays) into ``out``."""
     for i in range(x.size):
-        out[i] = _inside(x[i], y[i], r_min, r_max, b_min, b_max)
+        out[i] = _inside(x[i], y[i], r_min, r_max, cos_mid, sin_mid, cos_half)
 
 
 @kernel
-def _disc_fraction_into(x, y, radius, disc, r_min, r_max, b_min, b_max, out):
+def _disc_fraction_into(x, y, radius, disc, r_min, r_max, cos_mid, sin_mid, cos_half, out):
     """Per disc, the share of the unit-disc points ``disc (P, 2)``, scaled by its radius about its
     centre, that :func:`_inside` holds, into ``out``."""
     for i in range(x.size):
         n = 0
         for j in range(disc.shape[0]):
-            n += _inside(x[i] + radius[i] * disc[j, 0], y[i] + radius[i] * disc[j, 1], r_min, r_max, b_min, b_max)
+            n += _inside(x[i] + radius[i] * disc[j, 0], y[i] + radius[i] * disc[j, 1], r_min, r_max,
+                         cos_mid, sin_mid, cos_half)
         out[i] = n / disc.shape[0]
 
 
