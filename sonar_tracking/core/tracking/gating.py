@@ -254,14 +254,26 @@ def _bucket_table(keys, bucket, table):
 def _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi):
     """Positions ``[first, end)`` in ``keys`` of the measurements of strip ``st`` whose second
     coordinate (from its minimum) lies in ``[ylo, yhi]`` (compiled)."""
-    first = _search(keys, table, k0, bucket, st * span_y + ylo, False)
-    end = _search(keys, table, k0, bucket, st * span_y + yhi, True)
-    return first, max(end, first)
+    first = _first_at(keys, table, k0, bucket, st * span_y + ylo)
+    # The end by walking on over the few candidates a box usually holds, by bisection past them.
+    end, top, n = first, st * span_y + yhi, keys.size
+    stop = min(first + 16, n)
+    while end < stop and keys[end] <= top:
+        end += 1
+    if end == stop and end < n:
+        hi = n
+        while end < hi:
+            mid = (end + hi) // 2
+            if keys[mid] <= top:
+                end = mid + 1
+            else:
+                hi = mid
+    return first, end
 
 
 @kernel
-def _search(keys, table, k0, bucket, x, right):
-    """``np.searchsorted(keys, x, 'right' if right else 'left')``, searching only the buckets
+def _first_at(keys, table, k0, bucket, x):
+    """``np.searchsorted(keys, x, 'left')``, bisecting only the buckets
     around ``x``'s own (one either side absorbs the rounding of the bucket arithmetic; compiled)."""
     n_buckets = table.size - 1
     b = (x - k0) / bucket
@@ -272,7 +284,7 @@ def _search(keys, table, k0, bucket, x, right):
     hi = table[min(int(b) + 2, n_buckets)]
     while lo < hi:
         mid = (lo + hi) // 2
-        if keys[mid] < x or (right and keys[mid] == x):
+        if keys[mid] < x:
             lo = mid + 1
         else:
             hi = mid
