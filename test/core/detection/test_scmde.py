@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from sonar_tracking.core.detection import PolarWindow, scmde
+from sonar_tracking.core.detection.scmde import DISC
 
 WINDOW = PolarWindow(1800.0, 3300.0, math.radians(-2.0), math.radians(22.0))
 
@@ -75,3 +76,26 @@ def test_nth_neighbour_distances_equal_a_kd_tree_query(kind):
             out = np.empty(m)
             _nth_neighbour(p, n, out)
             np.testing.assert_array_equal(out, cKDTree(p).query(p, k=n + 1)[0][:, n])
+
+
+@pytest.mark.parametrize('b_min,span_deg', [(-2.0, 24.0), (170.0, 20.0), (-60.0, 200.0), (-180.0, 360.0),
+                                            (10.0, 400.0)])
+def test_window_holds_the_points_of_its_ranges_and_bearings(b_min, span_deg):
+    """contains: range within [r_min, r_max] and bearing within the span (wrapped), away from the border;
+    disc_fraction: the share of the sunflower points of a disc that contains holds."""
+    w = PolarWindow(100.0, 900.0, math.radians(b_min), math.radians(b_min + span_deg))
+    rng = np.random.default_rng(int(span_deg))
+    r = rng.uniform(0.0, 1000.0, 4000)
+    b = rng.uniform(-2 * math.pi, 2 * math.pi, 4000)
+    off = np.remainder(b - w.b_min, 2 * math.pi)             # bearing past b_min, in [0, 2 pi)
+    in_range = (r >= 100.0) & (r <= 900.0)
+    in_bearing = (off <= w.b_max - w.b_min) | (w.b_max - w.b_min >= 2 * math.pi)
+    clear = (np.abs(r - 100.0) > 1e-6) & (np.abs(r - 900.0) > 1e-6) & (np.minimum(off, 2 * math.pi - off) > 1e-9) & (
+        np.abs(off - (w.b_max - w.b_min)) > 1e-9)
+    got = w.contains(r * np.cos(b), r * np.sin(b))
+    np.testing.assert_array_equal(got[clear], (in_range & in_bearing)[clear])
+    x, y = r[:50] * np.cos(b[:50]), r[:50] * np.sin(b[:50])
+    share = w.disc_fraction(x, y, np.full(50, 40.0))
+    pts_x = x[:, None] + 40.0 * DISC[None, :, 0]
+    pts_y = y[:, None] + 40.0 * DISC[None, :, 1]
+    np.testing.assert_array_equal(share, w.contains(pts_x, pts_y).mean(axis=1))
