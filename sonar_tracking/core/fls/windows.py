@@ -384,14 +384,7 @@ def _level(v, thresholds):
         for t in range(n_t):
             lev += thresholds[t] <= v
         return lev
-    lev, hi = 0, n_t
-    while lev < hi:
-        mid = (lev + hi) // 2
-        if thresholds[mid] <= v:
-            lev = mid + 1
-        else:
-            hi = mid
-    return lev
+    return np.searchsorted(thresholds, v, side='right')
 
 
 @kernel

@@ -35,7 +35,7 @@ def close(got, ref):
 
 
 @pytest.mark.parametrize('size', [3, 7, 11])
-@pytest.mark.parametrize('levels,distance', [(8, 1), (16, 2), (5, 3)])
+@pytest.mark.parametrize('levels,distance', [(8, 1), (16, 2), (5, 3), (32, 1)])
 def test_all_features_equal_the_general_path(size, levels, distance):
     cfg = FeatureConfig(glcm_levels=levels, glcm_distance=distance, glcm_db_max=20.0)
     img = image(size + levels)
