@@ -194,12 +194,19 @@ def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None)
     """Clutter density [1/m^2] at each of ``points`` ``(N, 2)`` (sensor-frame metres).
 
     ``window`` enables the edge correction and the count fallback; without it, sparse scans
-    (fewer than three points) get 0.
+    (fewer than three points) get 0. Points that are not finite raise ValueError (as the k-d tree
+    query this replaces did).
     """
     pts = np.asarray(points, dtype=float)
     m = len(pts)
     if m == 0:
         return np.zeros(0)
+    if pts.ndim != 2 or pts.shape[1] != 2:
+        raise ValueError(f'points must have shape (N, 2), got {pts.shape}')
+    with np.errstate(over='ignore', invalid='ignore'):
+        spread = np.ptp(pts, axis=0)
+    if not np.isfinite(spread).all():    # also every point finite
+        raise ValueError('points must be finite, and their spread too')
     if window is not None and m < order + 1:
         return np.full(m, m / window.area)
     n = min(order, m - 1)

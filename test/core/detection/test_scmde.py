@@ -99,3 +99,13 @@ def test_window_holds_the_points_of_its_ranges_and_bearings(b_min, span_deg):
     pts_x = x[:, None] + 40.0 * DISC[None, :, 0]
     pts_y = y[:, None] + 40.0 * DISC[None, :, 1]
     np.testing.assert_array_equal(share, w.contains(pts_x, pts_y).mean(axis=1))
+
+
+@pytest.mark.parametrize('bad', [np.nan, np.inf, 1e308])
+def test_points_that_are_not_finite_or_spread_past_floats_are_refused(bad):
+    pts = np.random.default_rng(3).uniform(0, 100, (50, 2))
+    pts[7, 1] = bad
+    if bad == 1e308:
+        pts[8, 1] = -1e308                      # a spread of 2e308 overflows
+    with pytest.raises(ValueError, match='finite'):
+        scmde(pts, 6, WINDOW)
