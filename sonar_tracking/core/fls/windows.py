@@ -243,8 +243,9 @@ class WindowImage:
             out[:, glcm_cols] = glcm_features(counts, glcm_cols)
 
 
+#: No grey-level image: :func:`_window_sums` quantises the pixels itself.
 _NO_LEVELS = np.zeros(0, np.int64)
-#: What :func:`_window_sums` computes besides the mean (bit flags).
+#: What :func:`_window_sums` computes besides the box sum (bit flags).
 _STD, _RING, _HU, _GLCM = 1, 2, 4, 8
 #: The central moments :func:`_window_sums` returns, in its order.
 _MOMENTS = ('20', '02', '11', '30', '03', '21', '12')
@@ -286,7 +287,7 @@ def _window_sums(values, levels, centres, width, size, thresholds, steps, flags,
                 col_w[c] += v
         m = total / n_px
         box_sum[k] = total
-        if flags & 1:
+        if flags & _STD:
             acc = 0.0
             for r in range(size):
                 base = top + r * width
@@ -295,7 +296,7 @@ def _window_sums(values, levels, centres, width, size, thresholds, steps, flags,
                     acc += d * d
             var = acc / n_px
             std[k] = np.sqrt(var) if var > 0.0 else 0.0
-        if flags & 2:
+        if flags & _RING:
             rs = 0.0
             rc = 0
             for c in range(-1, size + 1):
@@ -310,7 +311,7 @@ def _window_sums(values, levels, centres, width, size, thresholds, steps, flags,
                     rc += v > 0.0
             ring[k] = rs
             ring_count[k] = rc
-        if flags & 4:
+        if flags & _HU:
             m00 = total if total > 0.0 else 1.0
             xc = 0.0
             yc = 0.0
@@ -345,14 +346,14 @@ def _window_sums(values, levels, centres, width, size, thresholds, steps, flags,
             mu[k, 4] = mu03
             mu[k, 5] = mu21
             mu[k, 6] = mu12
-        if flags & 8:
+        if flags & _GLCM:
             for r in range(size):
                 base = top + r * width
                 for c in range(size):
                     v = levels[base + c] if levels.size else _level(values[base + c], thresholds)
                     q[r * size + c] = v
                     qs[r * size + c] = v * s
-            # Two count matrices, alternate columns: consecutive increments of one cell (common in a
+            # Two count tables, alternate pixels: consecutive increments of one cell (common in a
             # uniform window) would otherwise wait on each other.
             pairs.fill(0)
             n_pairs = 0
