@@ -255,7 +255,7 @@ def _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi):
     """Positions ``[first, end)`` in ``keys`` of the measurements of strip ``st`` whose second
     coordinate (from its minimum) lies in ``[ylo, yhi]`` (compiled)."""
     first = _first_at(keys, table, k0, bucket, st * span_y + ylo)
-    # The end by walking on over the few candidates a box usually holds, by bisection past them.
+    # The end: a walk over the few candidates a box usually holds, a bisection past 16 of them.
     end, top, n = first, st * span_y + yhi, keys.size
     stop = min(first + 16, n)
     while end < stop and keys[end] <= top:
@@ -273,8 +273,8 @@ def _strip_range(keys, table, k0, bucket, st, span_y, ylo, yhi):
 
 @kernel
 def _first_at(keys, table, k0, bucket, x):
-    """``np.searchsorted(keys, x, 'left')``, bisecting only the buckets
-    around ``x``'s own (one either side absorbs the rounding of the bucket arithmetic; compiled)."""
+    """``np.searchsorted(keys, x, 'left')``, bisecting only ``x``'s own bucket and one either side
+    (which absorbs the rounding of the bucket arithmetic; compiled)."""
     n_buckets = table.size - 1
     b = (x - k0) / bucket
     if not b >= 0.0:          # below the first key, or NaN
