@@ -22,7 +22,7 @@ ROS_SOURCED := $(shell $(PYTHON) -c 'import rclpy' >/dev/null 2>&1 && echo yes)
 # Keep test and demo DDS traffic on this machine.
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 
-.PHONY: all demo test test-all test-slow lint interfaces build bench venv clean help view view-deps
+.PHONY: all demo test test-all test-slow lint interfaces build bench venv clean help view view-deps kernels
 
 all: test
 
@@ -32,6 +32,7 @@ help:
 	@echo "make test-all  the same with the slow tests (soak, long studies); CI runs them too"
 	@echo "make build  colcon build into install/ (source install/setup.bash, then run executables)"
 	@echo "make bench  run the benchmarks (sonar_eval bench)"
+	@echo "make kernels  compile the numba kernels into their cache (demo and test do it first; ~15 s once)"
 	@echo "make view   install the view extra (Rerun) and run sonar_view (VIEW_ARGS=\"--bag out/demo_bag\" for a bag)"
 	@echo "make clean  remove .venv, build/, install/, log/, out/"
 
@@ -54,7 +55,7 @@ build: $(STAMP)
 # view-deps: sonar_view's tests need its extra, and its browser test Debian's chromium (~25 s here).
 # interfaces: the live imaging-sonar adapter's test needs marine_acoustic_msgs (built once, ~45 s).
 # The suite runs with install/ sourced, as `ros2 run` would.
-TEST_DEPS := build interfaces view-deps lint
+TEST_DEPS := build interfaces view-deps lint kernels
 test: $(TEST_DEPS)
 	source install/setup.bash && $(VPY) -m pytest test -m "not slow"
 
@@ -67,6 +68,11 @@ test-all: $(TEST_DEPS)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
+# The compiled kernels (numba) in their cache before anything runs: a fresh checkout compiles them
+# here once (~15 s), later runs load them (~1 s), so no node compiles while data queue up.
+kernels: $(STAMP)
+	$(VPY) -m sonar_tracking.core.warmup
+
 # marine_acoustic_msgs is not among the ROS wheels: generated from its definitions with the Jazzy
 # rosidl wheels, cmake and a C compiler. Where they are missing the live adapter's test says so.
 INTERFACES := install/marine_acoustic_msgs/share/marine_acoustic_msgs/package.xml
@@ -77,7 +83,7 @@ $(INTERFACES): $(STAMP) sonar_tracking/tools/importers/msgdefs.py sonar_tracking
 interfaces: $(INTERFACES)
 
 # The view is an extra: the demo runs (and writes its PNG) without it when it cannot install.
-demo: $(STAMP)
+demo: $(STAMP) kernels
 	@$(MAKE) --no-print-directory $(VIEW_STAMP) || echo "note: the view extra (requirements-view.txt) did not install; the demo runs without the live view"
 	$(VPY) -m sonar_tracking.tools.demo
 

@@ -28,6 +28,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 import msg_adapters as ma
+from sonar_tracking.core import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.detection import (ActiveDetector, DetectionInputError, DetectorConfig, best_track_focus,
                                            resolve_desired_density)
@@ -62,6 +63,7 @@ class ActiveDetectorNode(SonarNode):
         super().__init__('active_detector', DetectorNodeConfig(), 'active_detector: detection',
                          check=desired_density, **kwargs)
         self.detector = ActiveDetector(detector_config(self.config), desired_density(self.config))
+        self.warm_up(warmup.detector, self.detector.config, self.detector.desired_density)
         self.best_track: tuple[float, float] | None = None
         self.input = SectorInput(self, self._process, self._on_reset)
         self.subscribe(PointCloud2, 'tracks', self._on_tracks, 10)

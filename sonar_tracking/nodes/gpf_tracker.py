@@ -41,6 +41,7 @@ from sensor_msgs.msg import Image, PointCloud2
 
 import msg_adapters as ma
 from msg_adapters.map_info import fls_frame
+from sonar_tracking.core import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
@@ -72,6 +73,9 @@ class GpfTrackerNode(SonarNode):
         super().__init__('gpf_tracker', GpfNodeConfig(), 'gpf_tracker: tracking', **kwargs)
         self.tracker = GpfTracker(self.config, np.random.default_rng(self.config.seed),
                                   feature_config=self.config.features)
+        # A throwaway tracker of the same settings: the node's generator stays untouched.
+        self.warm_up(warmup.gpf, lambda: GpfTracker(self.config, np.random.default_rng(0),
+                                                    feature_config=self.config.features))
         self.frames = ma.StampPairer(self.PARTS, self.config.max_pending)
         self.origin_ns: int | None = None
         self.resets = self.processed = 0

@@ -33,6 +33,7 @@ import numpy as np
 from sensor_msgs.msg import PointCloud2
 
 import msg_adapters as ma
+from sonar_tracking.core import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
 from sonar_tracking.core.tracking.detections import detections_to_measurements
@@ -59,6 +60,7 @@ class ImmIpdaTrackerNode(SonarNode):
     def __init__(self, **kwargs) -> None:
         super().__init__('imm_ipda_tracker', TrackerNodeConfig(), 'imm_ipda_tracker: tracking', **kwargs)
         self.tracker = ImmIpdaTracker(self.config)
+        self.warm_up(warmup.tracker, self.config)
         self.origin_ns: int | None = None
         self.rejected_rows = 0
         self.resets = 0

@@ -62,6 +62,14 @@ class SonarNode(Node):
     def on_change(self, old: Any, new: Any) -> None:
         """Override to apply an accepted parameter change."""
 
+    def warm_up(self, run: Callable[..., float], *args: Any) -> None:
+        """Run a component's warm-up (:mod:`sonar_tracking.core.warmup`) before subscribing, so
+        its compiled kernels are loaded, or compiled on the first start after an install, before
+        the first message waits for them."""
+        seconds = run(*args)
+        log = self.get_logger().info if seconds > 1.0 else self.get_logger().debug
+        log(f'compiled kernels ready in {seconds:.1f} s')
+
     def input_qos(self, depth: int = 50):
         """The reader profile named by the ``input_qos`` parameter."""
         return input_profile(self.config.input_qos, depth)
