@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+from .config import ConfigError
 from .detection import ActiveDetector, DetectorConfig
 from .records import DETECTION_DTYPE
 from .sector import SectorGeometry
@@ -37,9 +38,12 @@ def tracker(config: TrackerConfig) -> float:
     initial covariance. Returns the seconds it took."""
     started = time.perf_counter()
     rng = np.random.default_rng(_SEED)
-    flat = config.flat()
-    flat['existence.confirm'] = min(flat['existence.confirm'], 0.5)   # confirm within the few scans
-    trk = ImmIpdaTracker(TrackerConfig.from_flat({k: v for k, v in flat.items() if k in TrackerConfig().flat()}))
+    flat = {k: v for k, v in config.flat().items() if k in TrackerConfig().flat()}
+    try:   # confirm within the few scans, where the settings allow it
+        settings = TrackerConfig.from_flat({**flat, 'existence.confirm': min(flat['existence.confirm'], 0.5)})
+    except ConfigError:
+        settings = TrackerConfig.from_flat(flat)
+    trk = ImmIpdaTracker(settings)
     trk.initial_covariance()
     for k in range(9):
         target = np.array([[5.0 * k, 2.0 * k]]) + rng.normal(0.0, 1.0, (1, 2))

@@ -66,7 +66,12 @@ class SonarNode(Node):
         """Run a component's warm-up (:mod:`sonar_tracking.core.warmup`) before subscribing, so
         its compiled kernels are loaded, or compiled on the first start after an install, before
         the first message waits for them."""
-        seconds = run(*args)
+        try:
+            seconds = run(*args)
+        except Exception as exc:  # noqa: BLE001 - a warm-up must never keep the node from starting
+            self.get_logger().warning(f'kernel warm-up failed ({type(exc).__name__}: {exc}); the kernels '
+                                      'compile on the first messages instead')
+            return
         log = self.get_logger().info if seconds > 1.0 else self.get_logger().debug
         log(f'compiled kernels ready in {seconds:.1f} s')
 

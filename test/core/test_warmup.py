@@ -99,3 +99,42 @@ def test_after_the_warm_up_a_real_run_compiles_nothing(script):
     r = subprocess.run([sys.executable, '-c', textwrap.dedent(script)], capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-4000:]
     assert 'kernels' in r.stdout
+
+
+def test_the_tracker_warm_up_keeps_settings_its_shortcut_would_break():
+    """The warm-up lowers T_c to confirm within its scans; where that breaks a rule (T_c above the
+    termination threshold), it runs with the settings as they are."""
+    from sonar_tracking.core import warmup
+    from sonar_tracking.core.tracking import TrackerConfig
+    cfg = TrackerConfig.from_flat({'existence.terminate': 0.6, 'existence.initial': 0.7, 'existence.confirm': 0.9})
+    assert warmup.tracker(cfg) > 0.0
+
+
+@pytest.mark.ros
+def test_a_failing_warm_up_is_logged_and_the_node_starts(inproc, monkeypatch):
+    from sonar_tracking.core import warmup
+    from sonar_tracking.nodes.imm_ipda_tracker import ImmIpdaTrackerNode
+    from sonar_tracking.ros.node import SonarNode
+    said = []
+
+    def boom(config):
+        raise RuntimeError('no compiler here')
+
+    original = SonarNode.get_logger
+    monkeypatch.setattr(warmup, 'tracker', boom)
+
+    class Logger:
+        def __init__(self, inner):
+            self.inner = inner
+
+        def warning(self, text, *a, **k):
+            said.append(text)
+            return self.inner.warning(text, *a, **k)
+
+        def __getattr__(self, name):
+            return getattr(self.inner, name)
+
+    monkeypatch.setattr(SonarNode, 'get_logger', lambda self: Logger(original(self)))
+    node = inproc(ImmIpdaTrackerNode)
+    assert node.tracker is not None
+    assert any('kernel warm-up failed (RuntimeError: no compiler here)' in s for s in said)
