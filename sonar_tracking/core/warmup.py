@@ -38,7 +38,8 @@ def tracker(config: TrackerConfig) -> float:
     its initial covariance. Returns the seconds it took."""
     started = time.perf_counter()
     rng = np.random.default_rng(_SEED)
-    flat = {k: v for k, v in config.flat().items() if k in TrackerConfig().flat()}
+    known = TrackerConfig().flat()   # a node's config carries its ROS settings too
+    flat = {k: v for k, v in config.flat().items() if k in known}
     try:   # confirm within the few scans, where the settings allow it
         settings = TrackerConfig.from_flat({**flat, 'existence.confirm': min(flat['existence.confirm'], 0.5)})
     except ConfigError:
@@ -105,8 +106,8 @@ def main() -> int:
     """``python -m sonar_tracking.core.warmup``: fill the kernel cache (default settings of each
     component), e.g. once after an install, before a demo or a test run."""
     from .gpf import GpfTracker
-    seconds = (tracker(TrackerConfig.from_flat({'imm.models': 'cv,ccw,cw'})) + tracker(TrackerConfig())
-               + detector(DetectorConfig(), 1e-5) + gpf(lambda: GpfTracker(rng=np.random.default_rng(0))))
+    seconds = (tracker(TrackerConfig.from_flat({'imm.models': 'cv,ccw,cw'})) + detector(DetectorConfig(), 1e-5)
+               + gpf(lambda: GpfTracker(rng=np.random.default_rng(0))))
     print(f'compiled kernels ready in {seconds:.1f} s')
     return 0
 
