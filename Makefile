@@ -71,13 +71,13 @@ lint: $(STAMP)
 # The compiled kernels (numba) in their cache before anything runs: a fresh checkout compiles them
 # here once (~15 s), later runs load them (~1 s), so no node compiles while data queue up.
 kernels: $(STAMP)
-	$(VPY) -m sonar_tracking.core.warmup
+	$(VPY) -m sonar_tracking.ros.warmup
 
 # marine_acoustic_msgs is not among the ROS wheels: generated from its definitions with the Jazzy
 # rosidl wheels, cmake and a C compiler. Where they are missing the live adapter's test says so.
 INTERFACES := install/marine_acoustic_msgs/share/marine_acoustic_msgs/package.xml
-$(INTERFACES): $(STAMP) sonar_tracking/tools/importers/msgdefs.py sonar_tracking/tools/importers/build_interfaces.py
-	$(VPY) -m sonar_tracking.tools.importers.build_interfaces --install-base install \
+$(INTERFACES): $(STAMP) sonar_tracking/io/importers/msgdefs.py sonar_tracking/cli/build_interfaces.py
+	$(VPY) -m sonar_tracking.cli.build_interfaces --install-base install \
 		|| echo "warning: marine_acoustic_msgs did not build (cmake and a C compiler needed); the live adapter's test will be skipped" >&2
 
 interfaces: $(INTERFACES)
@@ -85,7 +85,7 @@ interfaces: $(INTERFACES)
 # The view is an extra: the demo runs (and writes its PNG) without it when it cannot install.
 demo: $(STAMP) kernels
 	@$(MAKE) --no-print-directory $(VIEW_STAMP) || echo "note: the view extra (requirements-view.txt) did not install; the demo runs without the live view"
-	$(VPY) -m sonar_tracking.tools.demo
+	$(VPY) -m sonar_tracking.cli.demo
 
 # sonar_view's extra (Rerun's SDK with its web viewer, ~170 MB), never a dependency of the nodes.
 VIEW_STAMP := $(VENV)/.view-installed

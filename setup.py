@@ -14,19 +14,19 @@ CONSOLE_SCRIPTS = [
     'fls_features = sonar_tracking.nodes.fls_features:main',
     'gpf_tracker = sonar_tracking.nodes.gpf_tracker:main',
     'projected_sonar_adapter = sonar_tracking.nodes.projected_sonar_adapter:main',
-    'sonar_eval = sonar_tracking.tools.sonar_eval:main',
-    'sonar_stack = sonar_tracking.tools.sonar_stack:main',
-    'sonar_echo = sonar_tracking.tools.sonar_echo:main',
-    'bag_record = sonar_tracking.tools.bag_record:main',
-    'bag_replay = sonar_tracking.tools.bag_replay:main',
-    'sonar_import = sonar_tracking.tools.sonar_import:main',
-    'sonar_view = sonar_tracking.tools.sonar_view:main',
+    'sonar_eval = sonar_tracking.cli.sonar_eval:main',
+    'sonar_stack = sonar_tracking.cli.sonar_stack:main',
+    'sonar_echo = sonar_tracking.cli.sonar_echo:main',
+    'bag_record = sonar_tracking.cli.bag_record:main',
+    'bag_replay = sonar_tracking.cli.bag_replay:main',
+    'sonar_import = sonar_tracking.cli.sonar_import:main',
+    'sonar_view = sonar_tracking.cli.sonar_view:main',
 ]
 
 setup(
     name=PACKAGE,
     version='0.1.0',
-    packages=find_packages(include=[PACKAGE, PACKAGE + '.*', 'msg_adapters', 'msg_adapters.*']),
+    packages=find_packages(include=[PACKAGE, PACKAGE + '.*']),
     package_data={PACKAGE: ['data/*']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),

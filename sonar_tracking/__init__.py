@@ -1,7 +1,7 @@
 """sonar_tracking: an AUV sonar tracking stack for ROS 2 Jazzy.
 
 ``sonar_tracking.core`` holds the algorithms (pure numpy/scipy/OpenCV, never ROS);
-``sonar_tracking.nodes`` the thin rclpy nodes; ``sonar_tracking.tools`` the command-line programs.
+``sonar_tracking.nodes`` the thin rclpy nodes; ``sonar_tracking.cli`` the command-line programs.
 """
 
 __all__ = ['__version__']

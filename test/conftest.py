@@ -9,8 +9,11 @@ import pytest
 # and the package's DDS profile, as every process of the package uses it.
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+from sonar_tracking import process  # noqa: E402
 from sonar_tracking.ros.runtime import configure_dds  # noqa: E402 (must precede rclpy)
+
 configure_dds()
+process.drop_stale_kernel_caches()   # as every process of the package does where it starts
 
 
 @pytest.fixture(scope='session')
@@ -18,14 +21,14 @@ def rosbags_types():
     """Message builder on the rosbags ROS 2 Jazzy typestore (dataclasses with numpy arrays)."""
     from rosbags.typesys import Stores, get_typestore
 
-    from msg_adapters import RosbagsTypes
+    from sonar_tracking.msgs import RosbagsTypes
     return RosbagsTypes(get_typestore(Stores.ROS2_JAZZY))
 
 
 @pytest.fixture(params=['rclpy', 'rosbags'])
 def types(request, rosbags_types):
     """Both message representations: every adapter must work on each."""
-    from msg_adapters import rclpy_types
+    from sonar_tracking.msgs import rclpy_types
     return rclpy_types() if request.param == 'rclpy' else rosbags_types
 
 

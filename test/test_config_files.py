@@ -52,6 +52,6 @@ def test_parameter_file_is_valid(path):
 
 @pytest.mark.parametrize('path', sorted(CONFIG.glob('stack_*.yaml')), ids=lambda p: p.name)
 def test_stack_file_is_valid(path):
-    from sonar_tracking.tools.sonar_stack import load_stack
+    from sonar_tracking.cli.sonar_stack import load_stack
     stack = load_stack(path)
     assert stack.nodes and all(n.params_file is None or n.params_file.exists() for n in stack.nodes)

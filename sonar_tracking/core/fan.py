@@ -16,7 +16,7 @@ from collections import OrderedDict
 
 import numpy as np
 
-from .sector import SectorGeometry
+from sonar_tracking.core.sector import SectorGeometry
 
 __all__ = ['PolarCanvas', 'to_mono8', 'fan_extent']
 

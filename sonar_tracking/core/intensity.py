@@ -31,8 +31,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import Config, ConfigError, setting
-from .sector import SectorGeometry
+from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.sector import SectorGeometry
 
 __all__ = ['CODINGS', 'IntensityConfig', 'decode', 'encode_db', 'full_scale_of', 'gate_ranges', 'condition']
 

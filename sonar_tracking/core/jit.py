@@ -9,40 +9,14 @@ falls back to a per-user cache where that is not writable), so a process loads i
 compiling.
 
 numba checks a cached kernel against its own source file only, not against the kernels it calls
-from other files, so an edited callee would leave its callers' cached code stale. On import this
-module therefore drops every cached kernel under ``sonar_tracking/core`` older than the newest
-source file there (a no-op on an installed package, whose sources do not change).
+from other files, so an edited callee would leave its callers' cached code stale: the package's
+processes drop such caches where they start (:func:`sonar_tracking.process.drop_stale_kernel_caches`).
 """
 from __future__ import annotations
-
-import os
-from pathlib import Path
 
 import numba
 
 __all__ = ['kernel']
-
-_CORE = Path(__file__).resolve().parent
-
-
-def _drop_stale_caches(root: Path) -> None:
-    newest, caches = 0.0, []
-    for folder, _, files in os.walk(root):
-        for name in files:
-            path = os.path.join(folder, name)
-            if name.endswith('.py'):
-                newest = max(newest, os.stat(path).st_mtime)
-            elif name.endswith(('.nbi', '.nbc')):
-                caches.append(path)
-    for path in caches:
-        try:
-            if os.stat(path).st_mtime < newest:
-                os.unlink(path)
-        except OSError:        # removed by another process meanwhile, or not ours to remove
-            pass
-
-
-_drop_stale_caches(_CORE)
 
 
 def kernel(fn):

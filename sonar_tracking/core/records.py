@@ -1,6 +1,6 @@
 """Record dtypes of the PointCloud2 topics (DESIGN §4): one constant per topic.
 
-Defined here so that core components produce records directly; ``msg_adapters`` re-exports them
+Defined here so that core components produce records directly; ``sonar_tracking.msgs`` re-exports them
 as the message contract. All are packed, little-endian, height-1 clouds. Positions and covariances are float64 because
 world coordinates of a harbour sonar run to kilometres and covariances span many decades.
 """

@@ -3,7 +3,7 @@
 A sector is an image whose rows are range bins (row 0 nearest) and whose columns are beams in
 increasing bearing (DESIGN §4). Bearings are counter-clockwise from the sensor's x axis (REP-103).
 The geometry travels on ``/sonar/sector_info`` as a ``sensor_msgs/LaserScan`` with the same
-header as the image; ``msg_adapters.sector`` converts between the two.
+header as the image; ``sonar_tracking.msgs.sector`` converts between the two.
 """
 from __future__ import annotations
 

@@ -79,8 +79,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .config import Config, ConfigError, setting
-from .sector import SectorGeometry
+from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.sector import SectorGeometry
 
 __all__ = ['WarmUp', 'StructureConfig', 'echo_shapes', 'is_structure_shape', 'PolarBackground', 'GridBackground',
            'SectorBackground', 'vetoed_groups']

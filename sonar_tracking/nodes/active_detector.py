@@ -27,8 +27,8 @@ from sensor_msgs.msg import PointCloud2
 from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
-import msg_adapters as ma
-from sonar_tracking.core import warmup
+import sonar_tracking.msgs as ma
+from sonar_tracking.ros import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.detection import (ActiveDetector, DetectionInputError, DetectorConfig, best_track_focus,
                                            resolve_desired_density)

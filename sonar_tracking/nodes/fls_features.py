@@ -7,7 +7,7 @@ every sector with ``image.publish: sector``), in this order and with one stamp (
 in the image):
 
 * ``fls/image_info`` (``nav_msgs/MapMetaData``): the pixel <-> metres mapping of the image,
-  ``map_load_time`` = the image stamp (see ``msg_adapters.map_info``);
+  ``map_load_time`` = the image stamp (see ``sonar_tracking.msgs.map_info``);
 * ``fls/image`` (``sensor_msgs/Image`` ``32FC1``): the processed image the regions refer to:
   filtered, range-normalised intensity (1 = background level, 0 = no data), in OccupancyGrid
   layout (columns along x, rows along y of ``header.frame_id``);
@@ -31,8 +31,8 @@ from dataclasses import dataclass
 from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, PointCloud2
 
-import msg_adapters as ma
-from msg_adapters.map_info import grid_to_map_info
+import sonar_tracking.msgs as ma
+from sonar_tracking.msgs.map_info import grid_to_map_info
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FlsConfig, FlsFrame, FlsInputError, FlsProcessor
 from sonar_tracking.ros import SectorInput, SectorInputConfig, SonarNode, output_profile, run_node

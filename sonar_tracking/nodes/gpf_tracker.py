@@ -4,7 +4,7 @@ Subscribes the three outputs of ``fls_features`` for one frame, which share one 
 
 * ``fls/image`` (``sensor_msgs/Image`` ``32FC1``): the processed image, 0 = no data;
 * ``fls/image_info`` (``nav_msgs/MapMetaData``, ``map_load_time`` = the image stamp): its pixel
-  <-> metres mapping (``msg_adapters.map_info``);
+  <-> metres mapping (``sonar_tracking.msgs.map_info``);
 * ``fls/regions`` (``sensor_msgs/PointCloud2``, REGION_DTYPE): the segmented regions, where new
   tracks start and lost ones find their target again;
 
@@ -39,9 +39,9 @@ import numpy as np
 from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, PointCloud2
 
-import msg_adapters as ma
-from msg_adapters.map_info import fls_frame
-from sonar_tracking.core import warmup
+import sonar_tracking.msgs as ma
+from sonar_tracking.msgs.map_info import fls_frame
+from sonar_tracking.ros import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker

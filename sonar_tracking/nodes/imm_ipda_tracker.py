@@ -32,8 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 from sensor_msgs.msg import PointCloud2
 
-import msg_adapters as ma
-from sonar_tracking.core import warmup
+import sonar_tracking.msgs as ma
+from sonar_tracking.ros import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
 from sonar_tracking.core.tracking.detections import detections_to_measurements

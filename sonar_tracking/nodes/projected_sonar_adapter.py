@@ -3,9 +3,9 @@
 Subscribes ``sonar_image`` (remap it to the driver's topic, e.g. ``/oculus/sonar_image``; QoS from
 ``input_qos``: drivers usually publish best effort, so ``sensor_data``) and publishes each message as
 one sector, ``sonar/sector`` + ``sonar/sector_info`` with the message's stamp: the same conversion
-as ``sonar_import`` (:func:`sonar_tracking.tools.importers.projected_to_sector`: beams sorted into
+as ``sonar_import`` (:func:`sonar_tracking.io.importers.projected_to_sector`: beams sorted into
 increasing REP-103 bearing and resampled onto an even grid, the message's z-forward frame
-converted) and the same intensity handling (:func:`~sonar_tracking.tools.importers.condition_sector`).
+converted) and the same intensity handling (:func:`~sonar_tracking.io.importers.condition_sector`).
 
 ``marine_acoustic_msgs`` is not among the ROS wheels; where it is not importable the node still
 starts, says so and how to build it, and reports it in ``diagnostics``. Bad messages (sizes that
@@ -18,14 +18,14 @@ from typing import Any
 
 from sensor_msgs.msg import Image, LaserScan
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 from sonar_tracking.core.sector import GeometryError
 from sonar_tracking.ros import InputConfig, SonarNode, output_profile, run_node
-from sonar_tracking.tools.importers import ProjectedOptions, condition_sector, projected_to_sector
+from sonar_tracking.io.importers import ProjectedOptions, condition_sector, projected_to_sector
 
 __all__ = ['AdapterConfig', 'ProjectedSonarAdapter', 'convert', 'main']
 
-BUILD_HINT = 'python -m sonar_tracking.tools.importers.build_interfaces'
+BUILD_HINT = 'python -m sonar_tracking.cli.build_interfaces'
 
 
 @dataclass(frozen=True)

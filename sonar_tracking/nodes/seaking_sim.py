@@ -22,12 +22,12 @@ from rosgraph_msgs.msg import Clock
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, LaserScan, PointCloud2
 
-import msg_adapters as ma
-from msg_adapters.odometry import pose_to_odometry
+import sonar_tracking.msgs as ma
+from sonar_tracking.msgs.odometry import pose_to_odometry
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fan import PolarCanvas, to_mono8
-from sonar_tracking.core.sim import SimConfig, SimSector, Simulator, describe
-from sonar_tracking.core.sim.presets import SCENARIOS
+from sonar_tracking.sim import SimConfig, SimSector, Simulator, describe
+from sonar_tracking.sim.presets import SCENARIOS
 from sonar_tracking.ros import (CLOCK_TOPIC, ConfigParameters, Pacer, PacingConfig, SubscriberGate, declare_choice,
                                  output_profile, run_node)
 

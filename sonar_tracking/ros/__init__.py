@@ -6,18 +6,18 @@ diagnostics (:mod:`.diagnostics`), the processing-node base with guarded callbac
 sector input (:mod:`.sector_input`), and a simulated source's pace and stamps (:mod:`.pacing`).
 Nodes in ``sonar_tracking.nodes`` only wire these to the core.
 """
-from .coverage import CoverageSource
-from .diagnostics import StageDiagnostics
-from .gate import SubscriberGate
-from .node import InputConfig, SonarNode
-from .params import ConfigParameters, declare_choice, descriptor_for, start_value
-from .pacing import Pacer, PacingConfig
-from .pose import Pose, PoseConfig, PoseSource, check_sonar_pose
-from .qos import CLOCK_TOPIC, INPUT_QOS, input_profile, latest_profile, output_profile
-from .runtime import configure_dds, prepare_process, run_node
-from .sector_input import SectorInput, SectorInputConfig
-from .timeline import LATE, NEW, RESET, TimeGuard
-from .track_output import TrackOutput, TrackOutputConfig
+from sonar_tracking.ros.coverage import CoverageSource
+from sonar_tracking.ros.diagnostics import StageDiagnostics
+from sonar_tracking.ros.gate import SubscriberGate
+from sonar_tracking.ros.node import InputConfig, SonarNode
+from sonar_tracking.ros.params import ConfigParameters, declare_choice, descriptor_for, start_value
+from sonar_tracking.ros.pacing import Pacer, PacingConfig
+from sonar_tracking.ros.pose import Pose, PoseConfig, PoseSource, check_sonar_pose
+from sonar_tracking.ros.qos import CLOCK_TOPIC, INPUT_QOS, input_profile, latest_profile, output_profile
+from sonar_tracking.ros.runtime import configure_dds, prepare_process, run_node
+from sonar_tracking.ros.sector_input import SectorInput, SectorInputConfig
+from sonar_tracking.ros.timeline import LATE, NEW, RESET, TimeGuard
+from sonar_tracking.ros.track_output import TrackOutput, TrackOutputConfig
 
 __all__ = [
     'StageDiagnostics', 'InputConfig', 'SonarNode', 'ConfigParameters', 'descriptor_for', 'start_value',

@@ -14,11 +14,11 @@ from collections import OrderedDict
 
 from sensor_msgs.msg import LaserScan
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 from sonar_tracking.core.tracking.coverage import Coverage
 from sonar_tracking.core.tracking.errors import TrackingInputError
 
-from .pose import PoseSource
+from sonar_tracking.ros.pose import PoseSource
 
 __all__ = ['CoverageSource']
 

@@ -23,10 +23,10 @@ from rclpy.node import Node
 
 from sonar_tracking.core.config import Config, setting
 
-from .diagnostics import StageDiagnostics
-from .params import ConfigParameters
-from .qos import INPUT_QOS, input_profile
-from .timeline import LATE, RESET, TimeGuard
+from sonar_tracking.ros.diagnostics import StageDiagnostics
+from sonar_tracking.ros.params import ConfigParameters
+from sonar_tracking.ros.qos import INPUT_QOS, input_profile
+from sonar_tracking.ros.timeline import LATE, RESET, TimeGuard
 
 __all__ = ['InputConfig', 'SonarNode']
 
@@ -63,7 +63,7 @@ class SonarNode(Node):
         """Override to apply an accepted parameter change."""
 
     def warm_up(self, run: Callable[..., float], *args: Any) -> None:
-        """Run a component's warm-up (:mod:`sonar_tracking.core.warmup`) before subscribing, so
+        """Run a component's warm-up (:mod:`sonar_tracking.ros.warmup`) before subscribing, so
         its compiled kernels are loaded, or compiled on the first start after an install, before
         the first message waits for them."""
         try:

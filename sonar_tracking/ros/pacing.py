@@ -9,7 +9,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-from ..core.config import Config, setting
+from sonar_tracking.core.config import Config, setting
 
 __all__ = ['PacingConfig', 'Pacer']
 

@@ -14,12 +14,12 @@ from typing import TYPE_CHECKING, Callable
 
 from nav_msgs.msg import Odometry
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 from sonar_tracking.core.config import Config, ConfigError, setting
 from sonar_tracking.core.pose import PoseBuffer
 
 if TYPE_CHECKING:
-    from .node import SonarNode
+    from sonar_tracking.ros.node import SonarNode
 
 __all__ = ['PoseConfig', 'PoseSource', 'Pose', 'check_sonar_pose']
 

@@ -9,7 +9,7 @@ import threading
 from importlib import resources
 from typing import TYPE_CHECKING, Callable
 
-from sonar_tracking.core.allocator import apply_in_process
+from sonar_tracking import process
 
 if TYPE_CHECKING:
     import rclpy.node
@@ -18,14 +18,14 @@ __all__ = ['run_node', 'prepare_process', 'configure_dds', 'private_domain', 'ex
 
 
 def prepare_process() -> None:
-    """Call first in every ROS entry point: DDS defaults, the allocator settings, and under
+    """Call first in every ROS entry point: DDS defaults, :func:`sonar_tracking.process.prepare`, and under
     ``sonar_stack`` a parent watch.
 
     ``sonar_stack`` sets ``SONAR_TRACKING_DIE_WITH_PARENT``: the process then asks Linux for
     SIGTERM when its parent dies (``PR_SET_PDEATHSIG``), so a killed stack leaves no orphans.
     """
     configure_dds()
-    apply_in_process()   # large numpy temporaries stay on the heap (sonar_tracking.core.allocator)
+    process.prepare()
     if os.environ.get('SONAR_TRACKING_DIE_WITH_PARENT'):
         try:
             ctypes.CDLL('libc.so.6', use_errno=True).prctl(1, int(signal.SIGTERM))  # PR_SET_PDEATHSIG

@@ -25,12 +25,12 @@ from typing import Callable
 import numpy as np
 from sensor_msgs.msg import Image, LaserScan
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.sector import SectorError, SectorGeometry, check_sector
 
-from .node import InputConfig, SonarNode
-from .pose import Pose, PoseConfig, PoseSource
+from sonar_tracking.ros.node import InputConfig, SonarNode
+from sonar_tracking.ros.pose import Pose, PoseConfig, PoseSource
 
 __all__ = ['SectorInputConfig', 'SectorInput']
 

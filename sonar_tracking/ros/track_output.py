@@ -14,10 +14,10 @@ import numpy as np
 from sensor_msgs.msg import PointCloud2
 from visualization_msgs.msg import MarkerArray
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 from sonar_tracking.core.config import Config, setting
 
-from .qos import output_profile
+from sonar_tracking.ros.qos import output_profile
 
 __all__ = ['TrackOutputConfig', 'TrackOutput']
 

@@ -8,9 +8,9 @@ import pytest
 
 from sonar_tracking.core.fan import PolarCanvas, fan_extent, to_mono8
 from sonar_tracking.core.sector import SectorGeometry
-from sonar_tracking.core.sim import Scene, SeaKingConfig, SeaKingSonar, Target
-from sonar_tracking.core.sim.motion import StaticTrajectory
-from sonar_tracking.core.sim.shapes import shape
+from sonar_tracking.sim import Scene, SeaKingConfig, SeaKingSonar, Target
+from sonar_tracking.sim.motion import StaticTrajectory
+from sonar_tracking.sim.shapes import shape
 
 GEOM = SectorGeometry(angle_min=-0.5, angle_increment=0.01, n_beams=101, range_min=1.0, range_max=20.0, n_bins=96)
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-import msg_adapters as ma
-from sonar_tracking.core.sim import SimConfig, Simulator
+import sonar_tracking.msgs as ma
+from sonar_tracking.sim import SimConfig, Simulator
 
 pytestmark = pytest.mark.ros
 

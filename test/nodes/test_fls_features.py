@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-import msg_adapters as ma
-from msg_adapters.map_info import grid_to_map_info, map_info_to_grid
+import sonar_tracking.msgs as ma
+from sonar_tracking.msgs.map_info import grid_to_map_info, map_info_to_grid
 
 pytestmark = pytest.mark.ros
 

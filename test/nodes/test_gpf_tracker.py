@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 from sonar_tracking.core.fls import ImageGrid
-from msg_adapters.map_info import grid_to_map_info
+from sonar_tracking.msgs.map_info import grid_to_map_info
 
 pytestmark = pytest.mark.ros
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 
 pytestmark = pytest.mark.ros
 
@@ -90,7 +90,7 @@ def tracker(ros, launch, request):
 
 
 def test_tracks_a_target_and_publishes_tracks_markers_and_diagnostics(tracker):
-    from msg_adapters.odometry import pose_to_odometry
+    from sonar_tracking.msgs.odometry import pose_to_odometry
     rng = np.random.default_rng(40)
     tracker.pub_odom.publish(pose_to_odometry(-2000.0, 0.0, 0.0, stamp_ns=10**9))
     truth = np.array([100.0, 200.0])

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 
 pytestmark = pytest.mark.ros
 
@@ -135,7 +135,7 @@ def test_fan_image_shows_the_target_where_truth_says(ros, launch):
     from sensor_msgs.msg import Image, LaserScan, PointCloud2
 
     from sonar_tracking.core.fan import PolarCanvas
-    from sonar_tracking.core.sim import SeaKingSonar, SimConfig
+    from sonar_tracking.sim import SeaKingSonar, SimConfig
     fans, truths = [], []
     subs = [ros.node.create_subscription(Image, '/sonar/fan', fans.append, KEEP_ALL),
             ros.node.create_subscription(PointCloud2, '/sonar/truth', truths.append, KEEP_ALL),

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-import msg_adapters as ma
+import sonar_tracking.msgs as ma
 from sonar_tracking.core.sector import SectorGeometry
 
 pytestmark = pytest.mark.ros

@@ -9,8 +9,8 @@ import math
 import numpy as np
 import pytest
 
-import msg_adapters as ma
-from msg_adapters.map_info import grid_to_map_info
+import sonar_tracking.msgs as ma
+from sonar_tracking.msgs.map_info import grid_to_map_info
 from sonar_tracking.core.fls.grid import ImageGrid
 from sonar_tracking.core.sector import SectorGeometry
 

@@ -1,5 +1,5 @@
-"""The one time rule (sonar_tracking.ros.timeline) and stamp pairing (msg_adapters.pairing)."""
-from msg_adapters import StampPairer
+"""The one time rule (sonar_tracking.ros.timeline) and stamp pairing (sonar_tracking.msgs.pairing)."""
+from sonar_tracking.msgs import StampPairer
 from sonar_tracking.ros.timeline import LATE, NEW, RESET, TimeGuard
 
 

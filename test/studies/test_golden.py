@@ -19,7 +19,7 @@ import pytest
 
 GOLDEN = Path(__file__).resolve().parent / 'golden'
 CONFIG = Path(__file__).resolve().parents[2] / 'config'
-SONAR_EVAL = 'sonar_tracking.tools.sonar_eval'
+SONAR_EVAL = 'sonar_tracking.cli.sonar_eval'
 MANIFEST = json.loads((GOLDEN / 'manifest.json').read_text())
 UPDATE = os.environ.get('SONAR_GOLDEN_UPDATE') == '1'
 

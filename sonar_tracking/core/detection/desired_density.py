@@ -14,7 +14,7 @@ from typing import Callable
 import numpy as np
 import yaml
 
-from ..config import ConfigError
+from sonar_tracking.core.config import ConfigError
 
 __all__ = ['DesiredDensityTable', 'TableError', 'resolve_desired_density']
 

@@ -47,15 +47,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import Config, ConfigError, setting
-from ..intensity import IntensityConfig, condition
-from ..records import DETECTION_DTYPE
-from ..sector import GeometryError, SectorError, SectorGeometry, check_sector
-from ..structure import SectorBackground, StructureConfig, WarmUp, echo_shapes, is_structure_shape, vetoed_groups
-from .cells import CellDetections, threshold_cells
-from .conversion import convert_measurements
-from .esc import ExtremumSeekingController
-from .scmde import PolarWindow, scmde, sunflower
+from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.detection.cells import CellDetections, threshold_cells
+from sonar_tracking.core.detection.conversion import convert_measurements
+from sonar_tracking.core.detection.esc import ExtremumSeekingController
+from sonar_tracking.core.detection.scmde import PolarWindow, scmde, sunflower
+from sonar_tracking.core.intensity import IntensityConfig, condition
+from sonar_tracking.core.records import DETECTION_DTYPE
+from sonar_tracking.core.sector import GeometryError, SectorError, SectorGeometry, check_sector
+from sonar_tracking.core.structure import (
+    SectorBackground,
+    StructureConfig,
+    WarmUp,
+    echo_shapes,
+    is_structure_shape,
+    vetoed_groups,
+)
 
 __all__ = ['ThresholdConfig', 'CellConfig', 'ScmdeConfig', 'EscConfig', 'DetectorConfig', 'ActiveDetector',
            'ScanResult', 'DetectionInputError', 'best_track_focus']

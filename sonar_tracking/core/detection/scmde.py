@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..jit import kernel
+from sonar_tracking.core.jit import kernel
 
 __all__ = ['PolarWindow', 'scmde', 'sunflower']
 

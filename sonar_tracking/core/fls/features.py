@@ -60,8 +60,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import Config, ConfigError, setting
-from ..records import FEATURE_NAMES
+from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.records import FEATURE_NAMES
 
 __all__ = ['FeatureConfig', 'region_features', 'patch_features', 'quantise', 'glcm', 'glcm_features',
            'hu_moments', 'N_FEATURES', 'FEATURE_NAMES', 'FEATURE_LABELS']

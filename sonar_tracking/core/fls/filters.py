@@ -52,8 +52,8 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.ndimage import median_filter
 
-from ..config import Config, ConfigError, setting
-from ..sector import SectorGeometry
+from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.sector import SectorGeometry
 
 __all__ = ['FilterConfig', 'PolarSweepFilter', 'FilteredBlock', 'trimmed_mean', 'background_level',
            'median_blur']

@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import Config, setting
-from ..fan import PolarCanvas, fan_extent
-from ..sector import SectorGeometry
-from .grid import ImageGrid
+from sonar_tracking.core.config import Config, setting
+from sonar_tracking.core.fan import PolarCanvas, fan_extent
+from sonar_tracking.core.sector import SectorGeometry
+from sonar_tracking.core.fls.grid import ImageGrid
 
 __all__ = ['ImageConfig', 'ImageBuilder', 'ImageTooLargeError', 'canvas_for', 'grid_image']
 

@@ -35,19 +35,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..config import Config, ConfigError
-from ..intensity import IntensityConfig, condition
-from ..records import FEATURE_NAMES, REGION_DTYPE
-from ..sector import GeometryError, SectorError, SectorGeometry
-from ..sector import check_sector as sector_rule
-from ..structure import GridBackground, StructureConfig, WarmUp, echo_shapes, is_structure_shape, vetoed_groups
-from ..timeline import check_forward
-from .features import FeatureConfig, region_features
-from .filters import FilterConfig, PolarSweepFilter
-from .grid import ImageGrid
-from .image import ImageBuilder, ImageConfig, ImageTooLargeError
-from .segmentation import SegmentConfig, cells_per_pixel, grow_regions, relabel
-from .sweep import SweepTracker
+from sonar_tracking.core.config import Config, ConfigError
+from sonar_tracking.core.fls.features import FeatureConfig, region_features
+from sonar_tracking.core.fls.filters import FilterConfig, PolarSweepFilter
+from sonar_tracking.core.fls.grid import ImageGrid
+from sonar_tracking.core.fls.image import ImageBuilder, ImageConfig, ImageTooLargeError
+from sonar_tracking.core.fls.segmentation import SegmentConfig, cells_per_pixel, grow_regions, relabel
+from sonar_tracking.core.fls.sweep import SweepTracker
+from sonar_tracking.core.intensity import IntensityConfig, condition
+from sonar_tracking.core.records import FEATURE_NAMES, REGION_DTYPE
+from sonar_tracking.core.sector import GeometryError, SectorError, SectorGeometry
+from sonar_tracking.core.sector import check_sector as sector_rule
+from sonar_tracking.core.structure import (
+    GridBackground,
+    StructureConfig,
+    WarmUp,
+    echo_shapes,
+    is_structure_shape,
+    vetoed_groups,
+)
+from sonar_tracking.core.timeline import check_forward
 
 __all__ = ['FlsConfig', 'FlsFrame', 'FlsProcessor', 'FlsInputError', 'check_sector', 'regions_to_records']
 

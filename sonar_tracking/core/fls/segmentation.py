@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from ..config import Config, ConfigError, setting
-from .grid import ImageGrid
+from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.fls.grid import ImageGrid
 
 __all__ = ['SegmentConfig', 'grow_regions', 'threshold_components', 'cells_per_pixel', 'relabel']
 

@@ -21,7 +21,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .grnn import RankScaler, balanced_error, kernel_average
+from sonar_tracking.core.fls.grnn import RankScaler, balanced_error, kernel_average
 
 __all__ = ['SelectionResult', 'sfs', 'sbs', 'GrnnWrapper']
 

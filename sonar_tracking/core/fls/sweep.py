@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..sector import SectorGeometry
+from sonar_tracking.core.sector import SectorGeometry
 
 __all__ = ['SweepTracker', 'SweepStep']
 

@@ -40,9 +40,18 @@ import functools
 
 import numpy as np
 
-from ..jit import kernel
-from .features import (_DIRECTIONS, _GROUPS, N_FEATURES, FeatureConfig, _wanted, glcm_features, hu_moments,
-                       patch_features, quantise)
+from sonar_tracking.core.fls.features import (
+    _DIRECTIONS,
+    _GROUPS,
+    N_FEATURES,
+    FeatureConfig,
+    _wanted,
+    glcm_features,
+    hu_moments,
+    patch_features,
+    quantise,
+)
+from sonar_tracking.core.jit import kernel
 
 __all__ = ['WindowImage', 'window_features', 'WINDOW_SHAPE_FEATURES', 'CHUNK']
 

@@ -8,13 +8,13 @@
 * :mod:`.tracker` the tracker that wires them together, :mod:`.sir` and :mod:`.ekf` the
   baselines of Figure 13.
 """
-from .config import FUSION_MODES, GpfConfig
-from .cues import CUE_SPECS, CueModel
-from .ekf import EkfConfig, EkfTracker
-from .fusion import MF, WF, fuse
-from .fuzzy import fuzzy_weights
-from .track import GpfTrack, tracks_to_records
-from .tracker import GpfInputError, GpfTracker, StepReport
+from sonar_tracking.core.gpf.config import FUSION_MODES, GpfConfig
+from sonar_tracking.core.gpf.cues import CUE_SPECS, CueModel
+from sonar_tracking.core.gpf.ekf import EkfConfig, EkfTracker
+from sonar_tracking.core.gpf.fusion import MF, WF, fuse
+from sonar_tracking.core.gpf.fuzzy import fuzzy_weights
+from sonar_tracking.core.gpf.track import GpfTrack, tracks_to_records
+from sonar_tracking.core.gpf.tracker import GpfInputError, GpfTracker, StepReport
 
 __all__ = ['FUSION_MODES', 'GpfConfig', 'CUE_SPECS', 'CueModel', 'EkfConfig', 'EkfTracker', 'MF', 'WF', 'fuse',
            'fuzzy_weights', 'GpfTrack', 'tracks_to_records', 'GpfInputError', 'GpfTracker', 'StepReport']

@@ -11,10 +11,10 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from ..config import Config, ConfigError, setting
-from ..fls import PAPER_FEATURES
-from ..fls.windows import WINDOW_SHAPE_FEATURES
-from .cues import MAX_WINDOW
+from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.fls import PAPER_FEATURES
+from sonar_tracking.core.fls.windows import WINDOW_SHAPE_FEATURES
+from sonar_tracking.core.gpf.cues import MAX_WINDOW
 
 __all__ = ['MotionConfig', 'CueConfig', 'FusionConfig', 'BirthConfig', 'LostConfig', 'TemplateConfig',
            'GpfConfig', 'FUSION_MODES', 'FUSION_SWITCHES', 'PAPER_INITIAL_VARIANCE_PX', 'PAPER_PIXEL']

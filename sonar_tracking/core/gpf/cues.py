@@ -29,7 +29,7 @@ logarithmic beyond ``ref_i``; the bounded co-occurrence statistics and f09 as th
 ``sigma_i`` is the root-mean-square change of the transformed feature of a target's window
 between consecutive frames, measured with the default window (7 pixels of 0.1 m) on simulated
 FLS Table 5 situations 1-4 and 8-11 (four seeds each, SeaKing 675 kHz, default ``fls_features``
-settings; :func:`sonar_tracking.core.eval.fls_study.cue_statistics`): the likelihood then says
+settings; :func:`sonar_tracking.studies.fls_study.cue_statistics`): the likelihood then says
 how far a particle's window is from the template in units of the target's own frame-to-frame
 variation. ``ref_i`` is the median magnitude of the feature on targets in the same data.
 
@@ -40,7 +40,7 @@ lower quartile is 1.15), the moment invariants (f17, f20) hardly at all (they va
 target as on it). So ``T_i`` is per cue: the 7.5th percentile of its reliability on healthy tracks
 (particles 0.4 m around the imaged centre, template from the previous frame, frames where
 segmentation finds the target, ``alpha = 1``; 432 samples of situations 1-4 and 8-11, four runs
-each, seed 7; :func:`sonar_tracking.core.eval.fls_study.reliability_statistics` with ``quantile
+each, seed 7; :func:`sonar_tracking.studies.fls_study.reliability_statistics` with ``quantile
 7.5``): a cue is degenerated when it does worse than in 92.5 % of healthy frames. With the paper's
 five cues all five are above their thresholds together in 77 % of healthy frames, which is
 §4.2.2's "as a feature clue is good, MF ... otherwise, WF": adaptive fusion is MF on a healthy
@@ -56,9 +56,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..fls.features import FEATURE_LABELS, FeatureConfig
-from ..fls.grid import ImageGrid
-from ..fls.windows import WindowImage
+from sonar_tracking.core.fls.features import FEATURE_LABELS, FeatureConfig
+from sonar_tracking.core.fls.grid import ImageGrid
+from sonar_tracking.core.fls.windows import WindowImage
 
 __all__ = ['CueSpec', 'CUE_SPECS', 'CueModel', 'window_pixels', 'pixel_index', 'coarsening', 'coarsen', 'MAX_WINDOW']
 

@@ -22,11 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..config import Config, setting
-from ..tracking.gating import gate_threshold
-from .config import GpfConfig
-from .filters import Ekf, polar_measurement
-from .tracker import GpfTracker
+from sonar_tracking.core.config import Config, setting
+from sonar_tracking.core.tracking.gating import gate_threshold
+from sonar_tracking.core.gpf.config import GpfConfig
+from sonar_tracking.core.gpf.filters import Ekf, polar_measurement
+from sonar_tracking.core.gpf.tracker import GpfTracker
 
 __all__ = ['EkfConfig', 'EkfTracker', 'polar_measurement']
 

@@ -24,13 +24,20 @@ import math
 
 import numpy as np
 
-from ..tracking.kalman import predict as kalman_predict
-from . import sir
-from .fusion import normalise_log
-from .gaussian import (condition_velocity, floor_position, kalman_update, motion_matrices, predict, sample_gaussian,
-                       weighted_moments)
-from .management import gated_assignment
-from .track import GpfTrack
+from sonar_tracking.core.gpf import sir
+from sonar_tracking.core.gpf.fusion import normalise_log
+from sonar_tracking.core.gpf.gaussian import (
+    condition_velocity,
+    floor_position,
+    kalman_update,
+    motion_matrices,
+    predict,
+    sample_gaussian,
+    weighted_moments,
+)
+from sonar_tracking.core.gpf.management import gated_assignment
+from sonar_tracking.core.gpf.track import GpfTrack
+from sonar_tracking.core.tracking.kalman import predict as kalman_predict
 
 __all__ = ['TrackFilter', 'GaussianPF', 'SirPF', 'Ekf', 'FILTERS', 'polar_measurement', 'wrap_angle']
 

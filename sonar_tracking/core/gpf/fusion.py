@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.special import logsumexp
 
-from .fuzzy import fuzzy_weights
+from sonar_tracking.core.gpf.fuzzy import fuzzy_weights
 
 __all__ = ['MF', 'WF', 'second_target', 'normalise_log', 'cue_weights', 'cue_spreads', 'multiplicative', 'weighted',
            'Fused', 'fuse', 'fuse_many']

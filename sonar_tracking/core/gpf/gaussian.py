@@ -33,8 +33,8 @@ import functools
 
 import numpy as np
 
-from ..tracking.motion import ConstantVelocity
-from ..tracking.noise import white_noise_acceleration
+from sonar_tracking.core.tracking.motion import ConstantVelocity
+from sonar_tracking.core.tracking.noise import white_noise_acceleration
 
 __all__ = ['sample_gaussian', 'weighted_moments', 'motion_matrices', 'propagate', 'predict', 'floor_position',
            'condition_velocity', 'kalman_update']

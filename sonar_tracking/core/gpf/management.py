@@ -53,7 +53,7 @@ import math
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from .config import BirthConfig, LostConfig, TemplateConfig
+from sonar_tracking.core.gpf.config import BirthConfig, LostConfig, TemplateConfig
 
 __all__ = ['birth_covariance', 'unexplained', 'mahalanobis2', 'gated_assignment', 'reseed_pairs', 'spaced', 'widen',
            'template_may_update', 'blend_template', 'should_end', 'left_coverage']

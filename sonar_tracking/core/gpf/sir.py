@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .gaussian import floor_position, motion_matrices, sample_gaussian, weighted_moments
-from .gaussian import propagate as _propagate
+from sonar_tracking.core.gpf.gaussian import floor_position, motion_matrices, sample_gaussian, weighted_moments
+from sonar_tracking.core.gpf.gaussian import propagate as _propagate
 
 __all__ = ['propagate', 'resample', 'spread', 'roughen']
 

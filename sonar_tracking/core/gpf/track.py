@@ -5,8 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..records import GPF_TRACK_DTYPE
-from .fusion import MF
+from sonar_tracking.core.records import GPF_TRACK_DTYPE
+from sonar_tracking.core.gpf.fusion import MF
 
 __all__ = ['GpfTrack', 'tracks_to_records']
 

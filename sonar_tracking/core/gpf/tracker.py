@@ -46,19 +46,28 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..fls.features import FeatureConfig
-from ..fls.grid import ImageGrid
-from ..fls.windows import WindowImage
-from ..records import GPF_TRACK_DTYPE
-from ..timeline import check_forward
-from .config import GpfConfig
-from .cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
-from .filters import FILTERS, TrackFilter
-from .fusion import MF, WF, fuse_many, second_target
-from .gaussian import kalman_update
-from .management import (birth_covariance, blend_template, left_coverage, reseed_pairs, should_end, spaced,
-                         template_may_update, unexplained, widen)
-from .track import GpfTrack, tracks_to_records
+from sonar_tracking.core.fls.features import FeatureConfig
+from sonar_tracking.core.fls.grid import ImageGrid
+from sonar_tracking.core.fls.windows import WindowImage
+from sonar_tracking.core.gpf.config import GpfConfig
+from sonar_tracking.core.gpf.cues import MAX_WINDOW, CueModel, coarsen, coarsening, pixel_index, window_pixels
+from sonar_tracking.core.gpf.filters import FILTERS, TrackFilter
+from sonar_tracking.core.gpf.fusion import MF, WF, fuse_many, second_target
+from sonar_tracking.core.gpf.gaussian import kalman_update
+from sonar_tracking.core.gpf.management import (
+    birth_covariance,
+    blend_template,
+    left_coverage,
+    reseed_pairs,
+    should_end,
+    spaced,
+    template_may_update,
+    unexplained,
+    widen,
+)
+from sonar_tracking.core.gpf.track import GpfTrack, tracks_to_records
+from sonar_tracking.core.records import GPF_TRACK_DTYPE
+from sonar_tracking.core.timeline import check_forward
 
 __all__ = ['GpfInputError', 'Frame', 'GpfTracker', 'StepReport', 'regions_xy', 'check_image', 'NEGATIVE_TOLERANCE']
 

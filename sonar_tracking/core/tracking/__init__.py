@@ -17,20 +17,20 @@ tracks, then work along the long axis. Motion models return ordinary ``(n, n)`` 
 in as ``z (N, d)``, ``R (N, d, d)``, and :meth:`.ImmIpdaTracker.estimates` /
 :meth:`.ImmIpdaTracker.mode_states` give tracks-first copies.
 """
-from .config import MODE_NAMES, TrackerConfig
-from .coverage import Coverage
-from .errors import TrackingError, TrackingInputError
-from .gating import candidate_pairs, gate_probability, gate_threshold, innovations
-from .gaussian import moment_match
-from .imm import combine, interaction
-from .ipda import ipda_update
-from .kalman import predict
-from .management import initial_covariance
-from .markov import mode_transition_matrix, predict_existence, update_existence
-from .measurements import Rejection, check_measurements
-from .motion import ConstantTurn, ConstantVelocity, MotionModel, position_matrix
-from .noise import white_noise_acceleration
-from .tracker import ImmIpdaTracker, Mode, StepReport, modes_from_config
+from sonar_tracking.core.tracking.config import MODE_NAMES, TrackerConfig
+from sonar_tracking.core.tracking.coverage import Coverage
+from sonar_tracking.core.tracking.errors import TrackingError, TrackingInputError
+from sonar_tracking.core.tracking.gating import candidate_pairs, gate_probability, gate_threshold, innovations
+from sonar_tracking.core.tracking.gaussian import moment_match
+from sonar_tracking.core.tracking.imm import combine, interaction
+from sonar_tracking.core.tracking.ipda import ipda_update
+from sonar_tracking.core.tracking.kalman import predict
+from sonar_tracking.core.tracking.management import initial_covariance
+from sonar_tracking.core.tracking.markov import mode_transition_matrix, predict_existence, update_existence
+from sonar_tracking.core.tracking.measurements import Rejection, check_measurements
+from sonar_tracking.core.tracking.motion import ConstantTurn, ConstantVelocity, MotionModel, position_matrix
+from sonar_tracking.core.tracking.noise import white_noise_acceleration
+from sonar_tracking.core.tracking.tracker import ImmIpdaTracker, Mode, StepReport, modes_from_config
 
 __all__ = ['MODE_NAMES', 'TrackerConfig', 'Coverage', 'TrackingError', 'TrackingInputError', 'candidate_pairs',
            'gate_probability', 'gate_threshold', 'innovations', 'moment_match', 'combine', 'interaction',

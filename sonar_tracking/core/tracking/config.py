@@ -12,7 +12,7 @@ import itertools
 import math
 from dataclasses import dataclass
 
-from ..config import Config, ConfigError, setting
+from sonar_tracking.core.config import Config, ConfigError, setting
 
 __all__ = ['ImmConfig', 'DetectionConfig', 'ClutterConfig', 'ExistenceConfig', 'InitConfig', 'TrackConfig',
            'AssociationConfig', 'TrackerConfig', 'MODE_NAMES', 'PAPER_INITIATION']

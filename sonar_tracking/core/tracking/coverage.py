@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import TrackingInputError
+from sonar_tracking.core.tracking.errors import TrackingInputError
 
 __all__ = ['Coverage']
 

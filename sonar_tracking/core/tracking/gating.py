@@ -26,9 +26,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import gammainc, gammaincinv
 
-from ..jit import kernel
+from sonar_tracking.core.jit import kernel
 
-from .errors import TrackingInputError
+from sonar_tracking.core.tracking.errors import TrackingInputError
 
 __all__ = ['gate_threshold', 'gate_probability', 'candidate_pairs', 'candidate_counts', 'gate_boxes', 'Innovations',
            'innovations', 'gaussian_density', 'gate_pairs']

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
-from .gaussian import moment_match, moment_match_into
+from sonar_tracking.core.jit import kernel
+from sonar_tracking.core.tracking.gaussian import moment_match, moment_match_into
 
 __all__ = ['interaction', 'combine']
 

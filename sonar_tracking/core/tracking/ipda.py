@@ -40,10 +40,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..jit import kernel
-from .errors import TrackingInputError
-from .gating import Innovations, normal_density
-from .markov import existence_posterior
+from sonar_tracking.core.jit import kernel
+from sonar_tracking.core.tracking.errors import TrackingInputError
+from sonar_tracking.core.tracking.gating import Innovations, normal_density
+from sonar_tracking.core.tracking.markov import existence_posterior
 
 __all__ = ['IpdaResult', 'likelihood_ratios', 'ipda_update', 'segment_sum']
 

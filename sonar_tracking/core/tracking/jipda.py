@@ -60,9 +60,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from .errors import TrackingInputError
-from .gating import Innovations
-from .ipda import likelihood_ratios, segment_sum
+from sonar_tracking.core.tracking.errors import TrackingInputError
+from sonar_tracking.core.tracking.gating import Innovations
+from sonar_tracking.core.tracking.ipda import likelihood_ratios, segment_sum
 
 # Most states of the exact recursion (clusters x shared detections x 2^K) computed at once (32 MB).
 _DP_CELLS = 1 << 22

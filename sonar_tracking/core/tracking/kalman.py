@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
+from sonar_tracking.core.jit import kernel
 
 __all__ = ['predict']
 

@@ -72,8 +72,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
-from .gating import BoxSearch
+from sonar_tracking.core.jit import kernel
+from sonar_tracking.core.tracking.gating import BoxSearch
 
 __all__ = ['initial_covariance', 'initial_state_into', 'renew_tracks', 'unused_measurements', 'birth_measurements',
            'duplicate_tracks', 'excess_tracks', 'pair_budget', 'assess_tracks']

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..jit import kernel
-from .errors import TrackingInputError
+from sonar_tracking.core.jit import kernel
+from sonar_tracking.core.tracking.errors import TrackingInputError
 
 __all__ = ['mode_transition_matrix', 'predict_existence', 'update_existence', 'existence_posterior']
 

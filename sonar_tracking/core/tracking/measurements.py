@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..jit import kernel
-from .errors import TrackingInputError
+from sonar_tracking.core.jit import kernel
+from sonar_tracking.core.tracking.errors import TrackingInputError
 
 __all__ = ['Rejection', 'as_measurements', 'check_measurements']
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import TrackingInputError
+from sonar_tracking.core.tracking.errors import TrackingInputError
 
 __all__ = ['white_noise_acceleration']
 

@@ -50,22 +50,30 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..records import TRACK_DTYPE
-from ..timeline import check_forward
-from .config import MODE_NAMES, TrackerConfig
-from .coverage import Coverage
-from .errors import TrackingInputError
-from .gating import BoxSearch, gate_boxes, gate_pairs, gate_threshold
-from .imm import combine, interaction
-from .ipda import ipda_update
-from .jipda import association_factors, pair_likelihoods
-from .kalman import predict
-from .management import (assess_tracks, birth_measurements, duplicate_tracks, excess_tracks, initial_covariance,
-                         pair_budget, renew_tracks, unused_measurements)
-from .markov import mode_transition_matrix, predict_existence
-from .measurements import Rejection, as_measurements, check_measurements
-from .motion import ConstantTurn, ConstantVelocity, MotionModel
-from .noise import white_noise_acceleration
+from sonar_tracking.core.records import TRACK_DTYPE
+from sonar_tracking.core.timeline import check_forward
+from sonar_tracking.core.tracking.config import MODE_NAMES, TrackerConfig
+from sonar_tracking.core.tracking.coverage import Coverage
+from sonar_tracking.core.tracking.errors import TrackingInputError
+from sonar_tracking.core.tracking.gating import BoxSearch, gate_boxes, gate_pairs, gate_threshold
+from sonar_tracking.core.tracking.imm import combine, interaction
+from sonar_tracking.core.tracking.ipda import ipda_update
+from sonar_tracking.core.tracking.jipda import association_factors, pair_likelihoods
+from sonar_tracking.core.tracking.kalman import predict
+from sonar_tracking.core.tracking.management import (
+    assess_tracks,
+    birth_measurements,
+    duplicate_tracks,
+    excess_tracks,
+    initial_covariance,
+    pair_budget,
+    renew_tracks,
+    unused_measurements,
+)
+from sonar_tracking.core.tracking.markov import mode_transition_matrix, predict_existence
+from sonar_tracking.core.tracking.measurements import Rejection, as_measurements, check_measurements
+from sonar_tracking.core.tracking.motion import ConstantTurn, ConstantVelocity, MotionModel
+from sonar_tracking.core.tracking.noise import white_noise_acceleration
 
 __all__ = ['Mode', 'modes_from_config', 'StepReport', 'ImmIpdaTracker']
 

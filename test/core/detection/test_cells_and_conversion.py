@@ -72,7 +72,7 @@ def test_best_track_density_is_local():
     """Scenario 2: most clutter comes from the lam 0.8 region, so near a track in the lam 1.6 region
     ESC sees far less clutter than the sector mean."""
     from sonar_tracking.core.detection import ActiveDetector, DetectorConfig
-    from sonar_tracking.core.sim import SimConfig, Simulator
+    from sonar_tracking.sim import SimConfig, Simulator
     sim = Simulator(SimConfig.for_scenario('scenario2'), np.random.default_rng(4))
     y50 = sim.truth(50.0)[1][0, 1]
     cfg = DetectorConfig.from_flat({'esc.enabled': False, 'esc.density_source': 'best_track'})

@@ -12,7 +12,7 @@ import pytest
 
 from sonar_tracking.core.detection import (ActiveDetector, DetectorConfig, ExtremumSeekingController, compandor,
                                            sign_block)
-from sonar_tracking.core.sim import SimConfig, Simulator
+from sonar_tracking.sim import SimConfig, Simulator
 
 RHO_D = 2.21e-5  # Scenario 1's desired density (§5.1)
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from sonar_tracking.core.fls import FlsConfig
-from sonar_tracking.core.eval.fls_segmentation import PlainConfig, score_frames, simulate_frames
+from sonar_tracking.studies.fls_segmentation import PlainConfig, score_frames, simulate_frames
 
 SEED = 8000
 

@@ -9,7 +9,7 @@ import pytest
 from sonar_tracking.core.fls import ImageBuilder, ImageConfig, ImageGrid, SweepTracker, canvas_for, grid_image
 from sonar_tracking.core.fls.image import ImageTooLargeError
 from sonar_tracking.core.sector import SectorGeometry
-from sonar_tracking.core.sim import SeaKingConfig, SeaKingSonar
+from sonar_tracking.sim import SeaKingConfig, SeaKingSonar
 
 
 def test_grid_follows_the_occupancy_grid_convention():

@@ -9,8 +9,8 @@ from scipy import stats
 
 from sonar_tracking.core.detection.conversion import convert_measurements
 from sonar_tracking.core.records import TRACK_DTYPE
-from sonar_tracking.core.sim.motion import ScriptedTrajectory
-from sonar_tracking.core.sim.presets import HARBOUR_SONAR_XY, SCENARIO2_SEGMENTS
+from sonar_tracking.sim.motion import ScriptedTrajectory
+from sonar_tracking.sim.presets import HARBOUR_SONAR_XY, SCENARIO2_SEGMENTS
 from sonar_tracking.core.timeline import TimeWentBack
 from sonar_tracking.core.tracking import (ConstantVelocity, ImmIpdaTracker, Mode, TrackerConfig, TrackingInputError,
                                           white_noise_acceleration)

@@ -1,0 +1,524 @@
+"""``sonar_stack``: run a whole pipeline as child processes from one YAML file (no launch files).
+
+The file names the nodes to start, each with an executable of this package, an optional
+parameter file (relative to the YAML file, or in the package's ``config/``), single parameters
+and remappings; and what to do when a node exits: ``stop`` the stack (the default; the stack's
+exit status is 0 if that node exited cleanly, 1 otherwise), ``restart`` it (up to
+``max_restarts`` times) or ``ignore`` it::
+
+    on_exit: stop            # default for every node
+    max_restarts: 3
+    namespace: harbour       # optional: the whole stack in /harbour
+    nodes:
+      seaking_sim:
+        executable: seaking_sim
+        params_file: sim_harbour.yaml
+        parameters: {rate: 1.0}
+        remappings: {sonar/fan: fan}
+        on_exit: stop
+        wait_for: {sonar/sector: 1, detections: 1}   # start once these have that many subscribers
+      active_detector:
+        params_file: active_detector.yaml     # executable defaults to the node's key
+        namespace: left                       # optional: this node in /harbour/left
+    record:
+      topics: [sonar/sector, sonar/sector_info, detections, tracks]
+
+Nodes start in file order; one with ``wait_for`` starts only once each named topic has at least
+that many subscribers (so a simulator running at full speed starts after the pipeline listens).
+Every child's output is printed line by line prefixed with its name. Ctrl-C or SIGTERM sends
+SIGINT to every child and waits up to 5 s in all before killing what is left; children also get
+SIGTERM from the kernel if the stack itself dies (Linux ``PR_SET_PDEATHSIG``), so none is left
+behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none),
+started first; nodes with ``wait_for`` then also wait for the recorder to listen. ``--view``
+likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`` passes it options).
+
+Namespaces: ``namespace:`` at the top of the file puts the whole stack there, and a node's own
+``namespace:`` puts that node there (a relative one under the stack's, an absolute one as it is).
+``--namespace NS`` moves everything, file namespaces included, under ``NS``; so two stacks run
+side by side in ``/a`` and ``/b``. Relative names in ``wait_for`` resolve in the node's namespace
+and relative ``record`` topics in the stack's, as ROS resolves the nodes' own relative topic names;
+absolute names stay. A namespaced node still gets its section of the parameter file: ROS reads a
+section ``seaking_sim:`` only for ``/seaking_sim``, so the stack hands the child a copy of the file
+with the top-level node keys moved into its namespace (``/a/seaking_sim:``; ``/**`` keys as they are).
+
+A stack is named by a file (``--config path/to/stack.yaml``) or by a name looked up in the
+package's ``config/`` wherever the package is installed (``sonar_stack harbour`` finds
+``stack_harbour.yaml``; ``sonar_stack --list`` shows them). ``--set NODE.PARAM=VALUE`` (repeatable)
+sets a parameter of one node of the stack over its file and parameters, the value read as YAML
+(``--set seaking_sim.duration=30``, ``--set active_detector.esc.enabled=false``); a number in
+exponent form without a decimal point (``1e-5``) is a number, not the string YAML 1.1 makes it.
+``--dry-run`` prints the children's command lines and exits.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shlex
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+import yaml
+
+__all__ = ['main', 'StackConfig', 'NodeSpec', 'StackError', 'load_stack', 'find_stack', 'shipped_stacks',
+           'apply_settings', 'move', 'command', 'resolve_name', 'namespaced_params']
+
+_ON_EXIT = ('stop', 'restart', 'ignore')
+
+
+class StackError(ValueError):
+    """The stack file is malformed; the message says where."""
+
+
+@dataclass
+class NodeSpec:
+    """One child: name, executable, parameters file, parameters, remappings, exit policy."""
+
+    name: str
+    executable: str
+    params_file: Path | None = None
+    parameters: dict = field(default_factory=dict)
+    remappings: dict = field(default_factory=dict)
+    on_exit: str = 'stop'
+    extra_args: list = field(default_factory=list)
+    wait_for: dict = field(default_factory=dict)
+    namespace: str = '/'
+
+
+@dataclass
+class StackConfig:
+    """The nodes, the restart limit, the topics ``--record`` records, and how long the others may
+    finish their queued work after a node exits and stops the stack."""
+
+    nodes: list[NodeSpec]
+    max_restarts: int = 3
+    record_topics: list[str] = field(default_factory=list)
+    stop_delay: float = 1.0
+    namespace: str = '/'
+
+
+def _entry_points() -> dict[str, str]:
+    """Console script name -> module of this package."""
+    eps = metadata.entry_points(group='console_scripts')
+    return {ep.name: ep.value.split(':')[0] for ep in eps if ep.value.startswith('sonar_tracking.')}
+
+
+def _resolve(path: str, base: Path) -> Path:
+    p = Path(path)
+    if p.is_absolute():
+        return p
+    if (base / p).exists():
+        return base / p
+    from sonar_tracking.resources import config_path
+    try:
+        return config_path(str(p))
+    except FileNotFoundError:
+        raise StackError(f'parameter file {path} not found next to the stack file nor in the package config') from None
+
+
+_NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
+_STACK_KEYS = {'nodes', 'on_exit', 'max_restarts', 'stop_delay', 'record', 'namespace'}
+_NODE_KEYS = {'executable', 'params_file', 'parameters', 'remappings', 'on_exit', 'args', 'wait_for', 'namespace'}
+
+
+def _namespace(text, where: str) -> str:
+    """A namespace as given (``a``, ``/a/b``, ``/``), checked; relative ones keep no leading slash."""
+    if not isinstance(text, str):
+        raise StackError(f'{where}: a namespace must be a string, not {text!r}')
+    tokens = [t for t in text.strip('/').split('/')] if text.strip('/') else []
+    if '//' in text or any(not _NAME_TOKEN.fullmatch(t) for t in tokens):
+        raise StackError(f'{where}: {text!r} is not a ROS namespace (names of letters, digits and _, '
+                         'not starting with a digit, separated by /)')
+    return ('/' if text.startswith('/') else '') + '/'.join(tokens)
+
+
+def _join(outer: str, inner: str) -> str:
+    """``inner`` inside ``outer`` (an absolute ``inner`` stays as it is); the result is absolute."""
+    if inner.startswith('/'):
+        return inner
+    parts = [p for p in (outer.strip('/'), inner.strip('/')) if p]
+    return '/' + '/'.join(parts)
+
+
+def resolve_name(name: str, namespace: str) -> str:
+    """A topic name as ROS resolves it in ``namespace``: relative names go inside, absolute ones stay."""
+    return name if name.startswith('/') else _join(namespace, name)
+
+
+def _number(value):
+    """YAML 1.1 reads ``1e-5`` as a string; a parameter value that spells a number is the number."""
+    if isinstance(value, str) and re.fullmatch(r'[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+', value.strip()):
+        return float(value)
+    if isinstance(value, list):
+        return [_number(v) for v in value]
+    return value
+
+
+def load_stack(path: Path) -> StackConfig:
+    """Read and check a stack file; node namespaces come out absolute (the stack's joined with the node's)."""
+    try:
+        data = yaml.safe_load(path.read_text())
+    except (OSError, yaml.YAMLError) as exc:
+        raise StackError(f'cannot read {path}: {exc}') from None
+    if not isinstance(data, dict) or not isinstance(data.get('nodes'), dict) or not data['nodes']:
+        raise StackError(f'{path}: needs a "nodes:" mapping with at least one node')
+    unknown = set(data) - _STACK_KEYS
+    if unknown:
+        raise StackError(f'{path}: unknown keys {sorted(unknown)}; known: {sorted(_STACK_KEYS)}')
+    stack_ns = _join('/', _namespace(data.get('namespace', '/'), f'{path}: namespace'))
+    default_exit = data.get('on_exit', 'stop')
+    scripts = _entry_points()
+    nodes = []
+    for name, spec in data['nodes'].items():
+        spec = spec or {}
+        if not isinstance(spec, dict):
+            raise StackError(f'{path}: node {name} must be a mapping')
+        unknown = set(spec) - _NODE_KEYS
+        if unknown:
+            raise StackError(f'{path}: node {name} has unknown keys {sorted(unknown)}')
+        exe = spec.get('executable', name)
+        if exe not in scripts:
+            raise StackError(f'{path}: node {name}: unknown executable {exe!r}; known: {sorted(scripts)}')
+        on_exit = spec.get('on_exit', default_exit)
+        if on_exit not in _ON_EXIT:
+            raise StackError(f'{path}: node {name}: on_exit must be one of {list(_ON_EXIT)}, not {on_exit!r}')
+        wait_for = spec.get('wait_for') or {}
+        if not isinstance(wait_for, dict) or not all(isinstance(v, int) and v >= 0 for v in wait_for.values()):
+            raise StackError(f'{path}: node {name}: wait_for must map topics to subscriber counts')
+        nodes.append(NodeSpec(name=name, executable=exe,
+                              params_file=(_resolve(spec['params_file'], path.parent) if spec.get('params_file')
+                                           else None),
+                              parameters={k: _number(v) for k, v in (spec.get('parameters') or {}).items()},
+                              remappings=dict(spec.get('remappings') or {}), on_exit=on_exit,
+                              extra_args=[str(a) for a in spec.get('args') or []], wait_for=dict(wait_for),
+                              namespace=_join(stack_ns, _namespace(spec.get('namespace', ''),
+                                                                   f'{path}: node {name}: namespace'))))
+    record = data.get('record') or {}
+    return StackConfig(nodes=nodes, max_restarts=int(data.get('max_restarts', 3)),
+                       record_topics=list(record.get('topics') or []), stop_delay=float(data.get('stop_delay', 1.0)),
+                       namespace=stack_ns)
+
+
+def shipped_stacks() -> list[Path]:
+    """The stack files in the package's ``config/`` directories (first of each name)."""
+    from sonar_tracking.resources import config_dirs
+    found: dict[str, Path] = {}
+    for d in config_dirs():
+        for p in sorted(d.glob('stack_*.yaml')) if d.is_dir() else ():
+            found.setdefault(p.name, p)
+    return sorted(found.values(), key=lambda p: p.name)
+
+
+def find_stack(name: str) -> Path:
+    """A stack file: an existing path, else ``name``, ``name.yaml``, ``stack_name.yaml`` in the package config."""
+    p = Path(name)
+    if p.is_file():
+        return p
+    from sonar_tracking.resources import config_path
+    if p.name == name:
+        stem = name[:-5] if name.endswith('.yaml') else name
+        for candidate in (f'{stem}.yaml', f'stack_{stem}.yaml'):
+            try:
+                return config_path(candidate)
+            except FileNotFoundError:
+                pass
+    known = ', '.join(q.name for q in shipped_stacks()) or 'none'
+    raise StackError(f'no stack file {name!r}: not a file, nor in the package config (shipped stacks: {known})')
+
+
+def apply_settings(config: StackConfig, settings: list[str]) -> None:
+    """Apply ``NODE.PARAM=VALUE`` settings (value read as YAML) over the nodes' parameters."""
+    nodes = {spec.name: spec for spec in config.nodes}
+    for text in settings:
+        key, sep, value = text.partition('=')
+        node, dot, param = key.strip().partition('.')
+        if not sep or not dot or not param:
+            raise StackError(f'--set {text!r}: expected NODE.PARAM=VALUE, e.g. seaking_sim.duration=30')
+        if node not in nodes:
+            raise StackError(f'--set {text!r}: no node {node!r} in the stack; nodes: {", ".join(nodes)}')
+        try:
+            parsed = yaml.safe_load(value) if value.strip() else ''
+        except yaml.YAMLError as exc:
+            raise StackError(f'--set {text!r}: the value is not YAML: {exc}') from None
+        nodes[node].parameters[param] = _number(parsed)
+
+
+def move(config: StackConfig, namespace: str) -> None:
+    """Put the whole stack, every node namespace included, under ``namespace``."""
+    outer = _join('/', _namespace(namespace, '--namespace'))
+    config.namespace = _join(outer, config.namespace.lstrip('/'))
+    for spec in config.nodes:
+        spec.namespace = _join(outer, spec.namespace.lstrip('/'))
+
+
+_TOP_KEY = re.compile(r'''^(?P<q>['"]?)(?P<key>[^\s'"#\-][^'"#:]*?)(?P=q)(?P<rest>\s*:(\s.*)?)$''')
+
+
+def namespaced_params(path: Path, namespace: str, out_dir: Path) -> Path:
+    """A copy of a parameter file whose top-level node keys are moved into ``namespace``.
+
+    ``seaking_sim:`` and ``/seaking_sim:`` become ``/a/seaking_sim:``; wildcard keys (``/**``) stay.
+    The copy is made line by line, so every value keeps the text (and type) it had.
+    """
+    lines = []
+    for line in path.read_text().splitlines(keepends=True):
+        m = _TOP_KEY.match(line.rstrip('\n'))
+        if m and m['key'] not in ('---', '...') and '*' not in m['key']:
+            key = _join(namespace, m['key'].strip().lstrip('/'))
+            line = f"{m['q']}{key}{m['q']}{m['rest']}\n"
+        lines.append(line)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out = out_dir / f'{namespace.strip("/").replace("/", "_")}__{path.name}'
+    out.write_text(''.join(lines))
+    return out
+
+
+def command(spec: NodeSpec, params_dir: Path | None = None) -> list[str]:
+    """The child's command line: ``python -m <module> [args] --ros-args ...``.
+
+    A node outside the root namespace gets its parameter file moved into its namespace
+    (:func:`namespaced_params`), written to ``params_dir``.
+    """
+    module = _entry_points()[spec.executable]
+    cmd = [sys.executable, '-m', module, *spec.extra_args, '--ros-args']
+    if spec.namespace != '/':
+        cmd += ['-r', f'__ns:={spec.namespace}']
+    if spec.params_file:
+        path = spec.params_file
+        if spec.namespace != '/' and params_dir is not None:
+            path = namespaced_params(path, spec.namespace, params_dir)
+        cmd += ['--params-file', str(path)]
+    for key, value in spec.parameters.items():
+        cmd += ['-p', f'{key}:={json.dumps(value)}']
+    for src, dst in spec.remappings.items():
+        cmd += ['-r', f'{src}:={dst}']
+    return cmd
+
+
+class Child:
+    """A running node with its output relay."""
+
+    def __init__(self, spec: NodeSpec, out_lock: threading.Lock, params_dir: Path | None = None) -> None:
+        self.spec = spec
+        self.params_dir = params_dir
+        self.restarts = 0
+        self.out_lock = out_lock
+        self.proc: subprocess.Popen | None = None
+        self.start()
+
+    def start(self) -> None:
+        env = dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1', PYTHONUNBUFFERED='1')
+        self.proc = subprocess.Popen(command(self.spec, self.params_dir), stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True, env=env)
+        threading.Thread(target=self._relay, args=(self.proc,), daemon=True).start()
+
+    def _relay(self, proc: subprocess.Popen) -> None:
+        for line in proc.stdout:
+            with self.out_lock:
+                sys.stdout.write(f'[{self.spec.name}] {line}')
+                sys.stdout.flush()
+
+    def signal(self, signum: int) -> None:
+        if self.proc and self.proc.poll() is None:
+            try:
+                os.killpg(self.proc.pid, signum)
+            except ProcessLookupError:
+                pass
+
+
+class _GraphProbe:
+    """A small rclpy node of the stack's own, to count subscribers for ``wait_for``."""
+
+    def __init__(self) -> None:
+        from sonar_tracking.ros.runtime import configure_dds
+        configure_dds()
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.signals import SignalHandlerOptions
+        self.context = Context()
+        rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node('sonar_stack', context=self.context)
+
+    def ready(self, wait_for: dict) -> bool:
+        return all(self.node.count_subscribers(topic) >= n for topic, n in wait_for.items())
+
+    def close(self) -> None:
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0, view: str | None = None) -> int:
+    """Start the children, watch them, stop them; returns the stack's exit status."""
+    lock = threading.Lock()
+    stop = threading.Event()
+
+    def say(text: str) -> None:
+        with lock:
+            print(f'[sonar_stack] {text}', flush=True)
+
+    signal.signal(signal.SIGINT, lambda *a: stop.set())
+    signal.signal(signal.SIGTERM, lambda *a: stop.set())
+    specs = list(config.nodes)
+    waits = {spec.name: {resolve_name(t, spec.namespace): n for t, n in spec.wait_for.items()} for spec in specs}
+    if record_dir is not None:
+        # The recorder starts first, and nodes that wait for listeners also wait for it.
+        topics = [resolve_name(t, config.namespace) for t in config.record_topics]
+        recorder = NodeSpec(name='bag_record', executable='bag_record', on_exit='stop',
+                            extra_args=['-o', str(record_dir), *topics])
+        late = _late_topics(topics, config.namespace)
+        if late and any(spec.wait_for for spec in specs):
+            say('bag_record subscribes to ' + ', '.join(late) + ' only once they are published (it knows the '
+                "package's topics in the root namespace only): nobody waits for it there, and the bag may miss "
+                'their first messages')
+        for spec in specs:
+            if spec.wait_for:
+                for topic in topics:
+                    if topic not in late:
+                        waits[spec.name][topic] = waits[spec.name].get(topic, 0) + 1
+        specs.insert(0, recorder)
+        waits[recorder.name] = {}
+    if view is not None:  # waited topics the view listens to get one more listener
+        from sonar_tracking.cli.view import TOPICS
+        listens = {resolve_name(t, config.namespace) for t in TOPICS}
+        waits = {name: {t: n + (t in listens) for t, n in w.items()} for name, w in waits.items()}
+        specs.insert(0, NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore',
+                                 extra_args=shlex.split(view), namespace=config.namespace))
+        waits['sonar_view'] = {}
+    params_dir = tempfile.TemporaryDirectory(prefix='sonar_stack_')
+    try:
+        return _run(config, specs, waits, Path(params_dir.name), grace, say, lock, stop)
+    finally:
+        params_dir.cleanup()
+
+
+def _late_topics(topics: list[str], namespace: str) -> list[str]:
+    """Package topics moved into ``namespace``, which ``bag_record`` subscribes to only once they are
+    published: a node waiting for the recorder to listen there before it publishes would wait forever."""
+    from sonar_tracking.cli.bag_record import PACKAGE_TOPICS
+    prefix = namespace.rstrip('/')
+    return [t for t in topics if prefix and t not in PACKAGE_TOPICS and t.startswith(prefix + '/')
+            and t[len(prefix):] in PACKAGE_TOPICS]
+
+
+def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, params_dir: Path, grace: float,
+         say, lock: threading.Lock, stop: threading.Event) -> int:
+    children = []
+    graph = _GraphProbe() if any(waits.values()) else None
+    try:
+        for spec in specs:
+            wait_for = waits[spec.name]
+            if wait_for:
+                say(f'{spec.name} waits for subscribers: ' + ', '.join(f'{t} >= {n}' for t, n in wait_for.items()))
+                while not stop.is_set() and not graph.ready(wait_for):
+                    time.sleep(0.05)
+                if stop.is_set():
+                    break
+            children.append(Child(spec, lock, params_dir))
+            say(f'started {spec.name} (pid {children[-1].proc.pid})')
+    finally:
+        if graph is not None:
+            graph.close()
+    status = 0
+    gone: set[str] = set()
+    while not stop.is_set():
+        time.sleep(0.1)
+        for child in children:
+            code = child.proc.poll()
+            name = child.spec.name
+            if code is None or name in gone:
+                continue
+            if child.spec.on_exit == 'restart' and child.restarts < config.max_restarts:
+                child.restarts += 1
+                say(f'{name} exited with status {code}: restarting ({child.restarts}/{config.max_restarts})')
+                time.sleep(0.5)
+                child.start()
+            elif child.spec.on_exit == 'ignore':
+                say(f'{name} exited with status {code}; the others keep running')
+                gone.add(name)
+            else:
+                say(f'{name} exited with status {code}: stopping the stack')
+                status = 0 if code == 0 else 1
+                if code == 0:
+                    stop.wait(config.stop_delay)  # let the others finish what is queued
+                stop.set()
+                break
+    say('stopping')
+    for child in children:
+        child.signal(signal.SIGINT)
+    deadline = time.monotonic() + grace
+    for child in children:
+        try:
+            child.proc.wait(max(0.0, deadline - time.monotonic()))
+        except subprocess.TimeoutExpired:
+            say(f'{child.spec.name} did not stop within {grace:g} s: killed')
+            child.signal(signal.SIGKILL)
+            child.proc.wait()
+    return status
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``sonar_stack``."""
+    parser = argparse.ArgumentParser(prog='sonar_stack', description=__doc__.split('\n\n')[0], allow_abbrev=False,
+                                     epilog='e.g. sonar_stack harbour --namespace /auv1 --set seaking_sim.duration=30')
+    parser.add_argument('stack', nargs='?',
+                        help='stack name or file: harbour, fls, stack_harbour.yaml, path/to/my.yaml')
+    parser.add_argument('--config', help='stack file, or the name of one in the package config (as STACK)')
+    parser.add_argument('--set', action='append', default=[], metavar='NODE.PARAM=VALUE',
+                        help='set a parameter of a node of the stack (repeatable; the value is YAML)')
+    parser.add_argument('--namespace', metavar='NS', help='run the whole stack in this namespace, e.g. /auv1')
+    parser.add_argument('--record', type=Path, default=None, metavar='DIR', help='also record a bag into DIR')
+    parser.add_argument('--view', nargs='?', const='', default=None, metavar='ARGS',
+                        help='also run sonar_view, the browser view (ARGS: its options, quoted)')
+    parser.add_argument('--dry-run', action='store_true', help="print the children's command lines and exit")
+    parser.add_argument('--list', action='store_true', help='list the stack files shipped with the package')
+    args = parser.parse_args(argv)
+    if args.list:
+        for p in shipped_stacks():
+            print(p)
+        return 0
+    if (args.stack is None) == (args.config is None):
+        parser.error('give a stack: a name or file, or --config FILE (one of them)')
+    try:
+        path = find_stack(args.stack or args.config)
+        config = load_stack(path)
+        apply_settings(config, args.set)
+        if args.namespace is not None:
+            move(config, args.namespace)
+    except StackError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return 2
+    if args.dry_run:
+        print(f'# {path}' + (f' in {config.namespace}' if config.namespace != '/' else ''))
+        for spec in config.nodes:
+            print(shlex.join(command(spec)))
+            if spec.params_file and spec.namespace != '/':
+                print(f'#   (run with a copy of {spec.params_file.name} whose node keys are in {spec.namespace})')
+        return 0
+    if args.record is not None and args.record.exists():
+        print(f'error: {args.record} exists already', file=sys.stderr)
+        return 2
+    if args.view is not None and not _has_view():
+        from sonar_tracking.cli.sonar_view import MISSING
+        print(f'error: {MISSING}', file=sys.stderr)
+        return 2
+    return run(config, args.record, view=args.view)
+
+
+def _has_view() -> bool:
+    import importlib.util
+    try:
+        return importlib.util.find_spec('rerun') is not None
+    except (ImportError, ValueError):
+        return False
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,218 @@
+"""Monte Carlo runs over processes or a Dask cluster, with the same results wherever they run.
+
+Run ``i`` of a study seeded ``seed`` draws from ``SeedSequence(seed).spawn(n)[i]``: its random
+numbers depend only on the study seed and its index, so running the runs in one process, over
+``jobs`` local processes or on the workers of a Dask distributed cluster gives identical results,
+returned in run order.
+
+A :class:`RunPool` is where runs go: ``RunPool(jobs)`` is this process (``jobs <= 1``) or a pool
+of ``jobs`` processes; ``RunPool(jobs, cluster='tcp://HOST:PORT')`` sends them to the Dask
+scheduler at that address, ``cluster='local'`` to a ``LocalCluster`` of ``jobs`` worker processes
+started for the pool. Dask (``pip install -r requirements-cluster.txt``) is imported only then.
+
+Local worker processes start with the glibc allocator settings of
+:mod:`sonar_tracking.process` (glibc reads them only at process start): when this process
+does not already run with them, the workers come from a ``forkserver`` started with them instead
+of being forked from this process.
+"""
+from __future__ import annotations
+
+import multiprocessing
+import multiprocessing.forkserver
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, Callable, Iterable, Sequence
+
+import numpy as np
+
+from sonar_tracking.process import allocator_applied, allocator_env
+
+__all__ = ['run_seeds', 'run_monte_carlo', 'Progress', 'default_jobs', 'RunPool', 'ClusterUnavailable',
+           'add_pool_arguments', 'pool_from_args']
+
+
+def run_seeds(seed: int, n_runs: int) -> list[np.random.SeedSequence]:
+    """The seed sequence of every run of a study."""
+    return np.random.SeedSequence(seed).spawn(n_runs)
+
+
+def default_jobs() -> int:
+    """All cores this process may use."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+class Progress:
+    """A one-line progress bar on stderr (only when stderr is a terminal, unless forced)."""
+
+    def __init__(self, label: str, total: int, enabled: bool | None = None, stream=None) -> None:
+        self.label, self.total, self.done = label, total, 0
+        self.stream = stream or sys.stderr
+        self.enabled = self.stream.isatty() if enabled is None else enabled
+        self.t0 = time.monotonic()
+        self._last = 0.0
+
+    def update(self, n: int = 1) -> None:
+        self.done += n
+        now = time.monotonic()
+        if not self.enabled or (now - self._last < 0.2 and self.done < self.total):
+            return
+        self._last = now
+        elapsed = now - self.t0
+        frac = self.done / max(self.total, 1)
+        eta = elapsed / frac - elapsed if frac > 0 else 0.0
+        bar = '#' * int(30 * frac)
+        self.stream.write(f'\r{self.label} [{bar:<30s}] {self.done}/{self.total} runs, {elapsed:.0f} s, '
+                          f'eta {eta:.0f} s ')
+        if self.done >= self.total:
+            self.stream.write('\n')
+        self.stream.flush()
+
+
+def _call(args: tuple) -> Any:
+    fn, item, seed = args
+    return fn(item, seed)
+
+
+class ClusterUnavailable(RuntimeError):
+    """A Dask cluster was asked for but Dask is not installed or the scheduler cannot be reached."""
+
+
+class RunPool:
+    """Where the runs of studies go: here, ``jobs`` local processes, or a Dask cluster.
+
+    Use as a context manager; one pool serves several :meth:`map` calls (``desired-density`` runs
+    one per candidate) without starting processes or a local cluster again.
+    """
+
+    def __init__(self, jobs: int = 1, cluster: str | None = None) -> None:
+        if jobs < 1:
+            raise ValueError(f'jobs must be >= 1, not {jobs}')
+        self.jobs, self.cluster = int(jobs), cluster or None
+        self._executor: ProcessPoolExecutor | None = None
+        self._client = self._local = None
+
+    def __enter__(self) -> 'RunPool':
+        if self.cluster:
+            self._connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def describe(self) -> str:
+        """For the summary line: 'N processes' or the cluster and its worker count."""
+        if not self.cluster:
+            return f'{self.jobs} processes'
+        workers = len(self._client.scheduler_info().get('workers', {})) if self._client else 0
+        where = 'a local Dask cluster' if self.cluster == 'local' else f'the Dask cluster {self.cluster}'
+        return f'{where} ({workers} workers)'
+
+    def _connect(self) -> None:
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise ClusterUnavailable('--cluster needs Dask distributed: pip install -r requirements-cluster.txt '
+                                     '(or pip install "dask[distributed]")') from None
+        try:
+            if self.cluster == 'local':
+                self._local = LocalCluster(n_workers=self.jobs, threads_per_worker=1, processes=True,
+                                           dashboard_address=None, silence_logs=40)
+                self._client = Client(self._local)
+            else:
+                self._client = Client(self.cluster, timeout=30)
+        except (OSError, TimeoutError) as exc:
+            self.close()
+            raise ClusterUnavailable(f'cannot reach the Dask scheduler {self.cluster}: {exc}') from None
+
+    def map(self, fn: Callable[[Any, Any], Any], item: Any, seeds: Iterable, progress: Progress | None = None) -> list:
+        """``[fn(item, s) for s in seeds]`` in that order, wherever the pool runs them.
+
+        ``fn`` must be a module-level function of an installed package: workers import it by name."""
+        seeds = list(seeds)
+        tasks: Sequence[tuple] = [(fn, item, s) for s in seeds]
+        if self.cluster:
+            return self._map_cluster(tasks, progress)
+        if self.jobs <= 1 or len(tasks) <= 1:
+            out = []
+            for t in tasks:
+                out.append(_call(t))
+                if progress:
+                    progress.update()
+            return out
+        if self._executor is None:
+            self._executor = _process_pool(self.jobs)
+        out = []
+        for result in self._executor.map(_call, tasks, chunksize=max(1, len(tasks) // (8 * self.jobs))):
+            out.append(result)
+            if progress:
+                progress.update()
+        return out
+
+    def _map_cluster(self, tasks: Sequence[tuple], progress: Progress | None) -> list:
+        from distributed import as_completed
+        if self._client is None:
+            self._connect()
+        futures = self._client.map(_call, tasks, pure=False)
+        for _ in as_completed(futures):
+            if progress:
+                progress.update()
+        return self._client.gather(futures)  # run order, whatever order they finished in
+
+    def close(self) -> None:
+        if self._executor is not None:
+            self._executor.shutdown()
+            self._executor = None
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._local is not None:
+            self._local.close()
+            self._local = None
+
+
+def _process_pool(jobs: int) -> ProcessPoolExecutor:
+    """A process pool whose workers run with the allocator settings (see the module docstring)."""
+    if allocator_applied():
+        return ProcessPoolExecutor(max_workers=jobs)
+    saved = dict(os.environ)
+    os.environ.update(allocator_env())
+    try:
+        # The forkserver inherits this environment when it starts; ours is restored right after.
+        multiprocessing.forkserver.ensure_running()
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
+    return ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context('forkserver'))
+
+
+def run_monte_carlo(fn: Callable[[Any, np.random.SeedSequence], Any], item: Any, n_runs: int, seed: int,
+                    jobs: int = 1, progress: Progress | None = None, pool: RunPool | None = None) -> list:
+    """``[fn(item, seed_i) for i in range(n_runs)]`` (``seed_i`` from :func:`run_seeds`), on ``pool``
+    or else over ``jobs`` local processes.
+
+    ``fn`` must be a module-level function (it is pickled to the worker processes).
+    """
+    seeds = run_seeds(seed, n_runs)
+    if pool is not None:
+        return pool.map(fn, item, seeds, progress)
+    with RunPool(jobs) as own:
+        return own.map(fn, item, seeds, progress)
+
+
+def add_pool_arguments(parser: Any) -> None:
+    """``--jobs`` and ``--cluster`` of the ``sonar_eval`` studies."""
+    parser.add_argument('--jobs', type=int, default=default_jobs(),
+                        help='processes (default: all cores); with --cluster local, the workers')
+    parser.add_argument('--cluster', default=None, metavar='tcp://HOST:PORT|local',
+                        help='run the runs on the Dask scheduler at this address, or on a local Dask cluster of '
+                        '--jobs workers; results are those of --jobs (needs requirements-cluster.txt)')
+
+
+def pool_from_args(args: Any) -> RunPool:
+    """The :class:`RunPool` of parsed ``--jobs`` / ``--cluster`` (not yet entered)."""
+    return RunPool(args.jobs, getattr(args, 'cluster', None))

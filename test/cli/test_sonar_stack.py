@@ -1,0 +1,353 @@
+"""sonar_stack: children with prefixed logs, exit policies, clean stop, no orphans."""
+from __future__ import annotations
+
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sonar_tracking.cli.sonar_stack import StackError, command, load_stack
+
+pytestmark = pytest.mark.ros
+
+
+def write(tmp_path, text):
+    p = tmp_path / 'stack.yaml'
+    p.write_text(text)
+    return p
+
+
+def start(path, *args):
+    return subprocess.Popen([sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', '--config', str(path), *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+
+
+def alive(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # A zombie is dead too.
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().split()[2] != 'Z'
+    except FileNotFoundError:
+        return False
+
+
+def pids(out):
+    return {m.group(1): int(m.group(2)) for m in re.finditer(r'started (\S+) \(pid (\d+)\)', out)}
+
+
+def read_until(proc, pattern, timeout=30.0):
+    """Read the stack's output until a line matches; returns everything read."""
+    text, deadline = '', time.monotonic() + timeout
+    os.set_blocking(proc.stdout.fileno(), False)
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if line:
+            text += line
+            if re.search(pattern, text):
+                return text
+        else:
+            time.sleep(0.05)
+    raise AssertionError(f'no {pattern!r} in:\n{text}')
+
+
+def test_runs_until_the_simulator_finishes_with_prefixed_logs(tmp_path):
+    path = write(tmp_path, '''
+nodes:
+  seaking_sim:
+    parameters: {scenario: scenario1, rate: 4.0, duration: 3.0, shutdown_when_done: true}
+  active_detector:
+    params_file: active_detector.yaml
+    parameters: {esc.enabled: false}
+''')
+    proc = start(path)
+    out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 0, out
+    assert re.search(r'^\[seaking_sim\] .*finished after 3 sectors', out, re.M)
+    assert re.search(r'^\[active_detector\] .*ESC off', out, re.M)
+    assert 'seaking_sim exited with status 0: stopping the stack' in out
+    for name, pid in pids(out).items():
+        assert not alive(pid), name
+
+
+def test_sigterm_stops_every_child_within_five_seconds(tmp_path):
+    path = write(tmp_path, '''
+nodes:
+  seaking_sim: {parameters: {scenario: fls3, rate: 1.0}}
+  active_detector: {}
+''')
+    proc = start(path)
+    out = read_until(proc, r'\[active_detector\].*threshold')
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    rest, _ = proc.communicate(timeout=10)
+    assert time.monotonic() - t0 < 5.0
+    assert proc.returncode == 0
+    for name, pid in pids(out + rest).items():
+        assert not alive(pid), name
+
+
+def test_a_dead_child_is_restarted_or_stops_the_stack(tmp_path):
+    path = write(tmp_path, '''
+max_restarts: 1
+nodes:
+  seaking_sim: {parameters: {scenario: fls3, rate: 1.0}, on_exit: restart}
+  active_detector: {on_exit: stop}
+''')
+    proc = start(path)
+    out = read_until(proc, r'\[active_detector\].*threshold')
+    first = pids(out)
+    os.killpg(first['seaking_sim'], signal.SIGKILL)
+    out += read_until(proc, r'restarting \(1/1\)')
+    os.killpg(first['active_detector'], signal.SIGKILL)
+    rest, _ = proc.communicate(timeout=20)
+    assert 'active_detector exited with status -9: stopping the stack' in rest
+    assert proc.returncode == 1
+
+
+def test_a_killed_stack_leaves_no_orphans(tmp_path):
+    path = write(tmp_path, '''
+nodes:
+  seaking_sim: {parameters: {scenario: fls3, rate: 1.0}}
+''')
+    proc = start(path)
+    out = read_until(proc, r'\[seaking_sim\].*SeaKing')
+    child = pids(out)['seaking_sim']
+    os.killpg(proc.pid, signal.SIGKILL)   # the stack only: its child is in a session of its own
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while alive(child) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not alive(child)
+
+
+@pytest.mark.parametrize('text, match', [
+    ('nodes: {}', 'at least one node'),
+    ('nodes: {x: {executable: no_such_node}}', 'unknown executable'),
+    ('nodes: {seaking_sim: {on_exit: explode}}', 'on_exit must be one of'),
+    ('nodes: {seaking_sim: {params_file: nowhere.yaml}}', 'not found'),
+    ('nodes: {seaking_sim: {paramters: {}}}', 'unknown keys'),
+])
+def test_bad_stack_files_are_refused(tmp_path, text, match):
+    with pytest.raises(StackError, match=match):
+        load_stack(write(tmp_path, text))
+
+
+def test_command_line_of_a_child(tmp_path):
+    cfg = load_stack(write(tmp_path, '''
+nodes:
+  active_detector:
+    params_file: active_detector.yaml
+    parameters: {esc.density_source: best_track, sonar_pose: [1.0, 2.0, 0.0]}
+    remappings: {/detections: /harbour/detections}
+'''))
+    cmd = command(cfg.nodes[0])
+    assert cmd[1:3] == ['-m', 'sonar_tracking.nodes.active_detector']
+    assert cmd[cmd.index('--params-file') + 1].endswith('config/active_detector.yaml')
+    assert '-p' in cmd and 'esc.density_source:="best_track"' in cmd and 'sonar_pose:=[1.0, 2.0, 0.0]' in cmd
+    assert '/detections:=/harbour/detections' in cmd
+
+
+# --- names, settings, namespaces -----------------------------------------------------------------
+
+
+def test_stacks_are_found_by_name_in_the_package_config(tmp_path, monkeypatch):
+    from sonar_tracking.cli.sonar_stack import find_stack, shipped_stacks
+    monkeypatch.chdir(tmp_path)   # outside the source tree
+    harbour = find_stack('harbour')
+    assert harbour.name == 'stack_harbour.yaml' and harbour.is_file()
+    assert find_stack('stack_fls.yaml').name == 'stack_fls.yaml' and find_stack('fls') == find_stack('stack_fls')
+    assert {'stack_harbour.yaml', 'stack_fls.yaml'} <= {p.name for p in shipped_stacks()}
+    own = write(tmp_path, 'nodes: {seaking_sim: {}}')
+    assert find_stack(str(own)) == own
+    with pytest.raises(StackError, match='shipped stacks: .*stack_harbour.yaml'):
+        find_stack('nowhere')
+
+
+def test_a_stack_name_is_looked_up_in_the_installed_share(tmp_path, monkeypatch):
+    import sonar_tracking.resources as resources
+    from sonar_tracking.cli.sonar_stack import find_stack, shipped_stacks
+    share = tmp_path / 'install' / 'share' / 'sonar_tracking' / 'config'
+    share.mkdir(parents=True)
+    (share / 'stack_tank.yaml').write_text('nodes: {seaking_sim: {}}')
+    monkeypatch.setattr(resources, 'config_dirs', lambda: [tmp_path / 'src' / 'config', share])
+    monkeypatch.chdir(tmp_path)
+    assert find_stack('tank') == share / 'stack_tank.yaml' == find_stack('stack_tank.yaml')
+    assert shipped_stacks() == [share / 'stack_tank.yaml']
+
+
+def test_installed_sonar_stack_finds_a_stack_by_name_outside_the_source_tree(tmp_path):
+    install = Path(os.environ.get('SONAR_TRACKING_INSTALL', Path(__file__).resolve().parents[2] / 'install'))
+    if not (install / 'setup.bash').exists():
+        pytest.fail(f'{install} has no colcon install; run `make build` (make test does it)')
+    env = {k: v for k, v in os.environ.items() if k != 'SONAR_TRACKING_CONFIG'}
+    exe = install / 'sonar_tracking' / 'lib' / 'sonar_tracking' / 'sonar_stack'
+    r = subprocess.run(['bash', '-c', f'source {install}/setup.bash && exec {exe} harbour --dry-run '
+                        '--namespace /auv1 --set seaking_sim.duration=30'],
+                       capture_output=True, text=True, timeout=60, cwd=tmp_path, env=env)
+    assert r.returncode == 0, r.stderr
+    first = r.stdout.splitlines()[0]
+    # colcon --symlink-install finds the source tree's config first, a plain install its share/.
+    assert first.startswith('# ') and first.endswith('/config/stack_harbour.yaml in /auv1')
+    sim = next(line for line in r.stdout.splitlines() if 'sonar_tracking.nodes.seaking_sim' in line)
+    assert '-r __ns:=/auv1' in sim and 'duration:=30' in sim
+
+
+def test_settings_override_parameters_with_yaml_types(tmp_path):
+    from sonar_tracking.cli.sonar_stack import apply_settings
+    cfg = load_stack(write(tmp_path, '''
+nodes:
+  seaking_sim: {parameters: {rate: 1.0, scenario: fls3}}
+  active_detector: {}
+'''))
+    apply_settings(cfg, ['seaking_sim.rate=0', 'seaking_sim.scenario=scenario1', 'active_detector.esc.enabled=false',
+                         'active_detector.esc.desired_clutter_density=1e-5', 'active_detector.sonar_pose=[1, 2.5, 0]'])
+    sim, det = cfg.nodes
+    assert sim.parameters == {'rate': 0, 'scenario': 'scenario1'}
+    assert det.parameters == {'esc.enabled': False, 'esc.desired_clutter_density': 1e-5, 'sonar_pose': [1, 2.5, 0]}
+    cmd = command(det)
+    assert 'esc.enabled:=false' in cmd and 'esc.desired_clutter_density:=1e-05' in cmd
+    for bad, match in [('seaking_sim.rate', 'NODE.PARAM=VALUE'), ('rate=1', 'NODE.PARAM=VALUE'),
+                       ('tracker.rate=1', "no node 'tracker'.*seaking_sim, active_detector"),
+                       ('seaking_sim.rate=[1', 'not YAML')]:
+        with pytest.raises(StackError, match=match):
+            apply_settings(cfg, [bad])
+
+
+def test_namespaces_of_the_file_the_node_and_the_command_line(tmp_path):
+    from sonar_tracking.cli.sonar_stack import move, resolve_name
+    cfg = load_stack(write(tmp_path, '''
+namespace: harbour
+nodes:
+  seaking_sim: {}
+  active_detector: {namespace: left}
+  imm_ipda_tracker: {namespace: /fixed}
+'''))
+    assert cfg.namespace == '/harbour'
+    assert [n.namespace for n in cfg.nodes] == ['/harbour', '/harbour/left', '/fixed']
+    move(cfg, 'auv1')
+    assert cfg.namespace == '/auv1/harbour'
+    assert [n.namespace for n in cfg.nodes] == ['/auv1/harbour', '/auv1/harbour/left', '/auv1/fixed']
+    assert '__ns:=/auv1/harbour/left' in command(cfg.nodes[1])
+    assert resolve_name('sonar/sector', '/auv1/harbour') == '/auv1/harbour/sonar/sector'
+    assert resolve_name('/clock', '/auv1') == '/clock' and resolve_name('tracks', '/') == '/tracks'
+    for bad in ('a//b', '1st', 'a-b', 'a/b c'):
+        with pytest.raises(StackError, match='not a ROS namespace'):
+            move(cfg, bad)
+    with pytest.raises(StackError, match='not a ROS namespace'):
+        load_stack(write(tmp_path, 'nodes: {seaking_sim: {namespace: "x y"}}'))
+    with pytest.raises(StackError, match=r"unknown keys \['namespaces'\]"):
+        load_stack(write(tmp_path, 'namespaces: a\nnodes: {seaking_sim: {}}'))
+
+
+def test_a_namespaced_node_gets_its_parameter_file_section(tmp_path):
+    from sonar_tracking.cli.sonar_stack import namespaced_params
+    src = tmp_path / 'p.yaml'
+    src.write_text('# comment: keep\nseaking_sim:\n  ros__parameters:\n    seed: 3\n    eps: 1e-5\n'
+                   '"/active_detector":   # quoted\n  ros__parameters: {x: 1}\n/**:\n  ros__parameters:\n    y: 2\n')
+    out = namespaced_params(src, '/a/b', tmp_path / 'out')
+    assert out.read_text() == ('# comment: keep\n/a/b/seaking_sim:\n  ros__parameters:\n    seed: 3\n    eps: 1e-5\n'
+                               '"/a/b/active_detector":   # quoted\n  ros__parameters: {x: 1}\n/**:\n'
+                               '  ros__parameters:\n    y: 2\n')
+    cfg = load_stack(write(tmp_path, 'nodes: {seaking_sim: {params_file: sim_harbour.yaml, namespace: a}}'))
+    cmd = command(cfg.nodes[0], tmp_path / 'params')
+    moved = Path(cmd[cmd.index('--params-file') + 1])
+    assert moved.parent == tmp_path / 'params' and moved.read_text().count('\n/a/seaking_sim:\n') == 1
+
+
+def values(parameter_values) -> list:
+    """Python values of rcl_interfaces/ParameterValue messages (bool, int, double, string)."""
+    fields = {1: 'bool_value', 2: 'integer_value', 3: 'double_value', 4: 'string_value'}
+    return [getattr(v, fields[v.type]) for v in parameter_values]
+
+
+def test_two_harbour_stacks_in_namespaces_track_their_own_targets_without_cross_talk(ros):
+    """``sonar_stack harbour --namespace /a`` and ``/b`` at once, 30 scans each: scenario 1 (course
+    45 deg) in /a, scenario 2 (course 0 deg, turning left from 20 s) in /b; each confirmed track lies
+    on its own pipeline's target, some 250 m from the other's. The simulators wait for one more listener
+    than the stack (``wait_for_subscribers=2``): the test's, which subscribes once the graph and the
+    parameters have been checked, so those checks run before any scan."""
+    from rcl_interfaces.srv import GetParameters
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import Image, LaserScan, PointCloud2
+
+    import sonar_tracking.msgs as ma
+    keep_all = QoSProfile(history=HistoryPolicy.KEEP_ALL, reliability=ReliabilityPolicy.RELIABLE)
+    node = ros.node
+    got = {k: [] for k in ('/a/tracks', '/b/tracks', '/a/sonar/truth', '/b/sonar/truth')}
+    subs = [node.create_subscription(PointCloud2, t, got[t].append, keep_all) for t in got]
+    scenario = {'/a': 'scenario1', '/b': 'scenario2'}
+    procs = {ns: subprocess.Popen(
+        [sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', 'harbour', '--namespace', ns,
+         '--set', f'seaking_sim.scenario={s}', '--set', 'seaking_sim.duration=30',
+         '--set', 'seaking_sim.wait_for_subscribers=2'],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        for ns, s in scenario.items()}
+    try:
+        def publishers(topic):
+            return sorted((i.node_name, i.node_namespace) for i in node.get_publishers_info_by_topic(topic))
+
+        def topics_of(name, ns):
+            try:
+                return ({t for t, _ in node.get_publisher_names_and_types_by_node(name, ns)}
+                        | {t for t, _ in node.get_subscriber_names_and_types_by_node(name, ns)})
+            except Exception:   # not discovered yet
+                return set()
+
+        global_names = {'/rosout', '/parameter_events', '/clock'}
+        for ns in scenario:
+            ros.wait(lambda: publishers(f'{ns}/tracks') == [('imm_ipda_tracker', ns)], 60, f'{ns}/tracks publisher')
+            ros.wait(lambda: publishers(f'{ns}/detections') == [('active_detector', ns)], 30, f'{ns}/detections')
+            ros.wait(lambda: publishers(f'{ns}/sonar/truth') == [('seaking_sim', ns)], 60, f'{ns}/sonar/truth')
+            for name in ('seaking_sim', 'active_detector', 'imm_ipda_tracker'):
+                ros.wait(lambda: f'{ns}/tracks' in topics_of(name, ns) or f'{ns}/sonar/sector' in topics_of(name, ns),
+                         30, f'{ns}/{name} in the graph')
+                # Every topic of the node is in its namespace (none in the root, none in the other's).
+                names = topics_of(name, ns)
+                assert all(t.startswith(f'{ns}/') or t in global_names for t in names), (name, ns, sorted(names))
+            # The parameters through the CLI's protocol: --set, and the section of sim_harbour.yaml
+            # (clutter_lambda 1.6; scenario 1's own default is 1.2), moved into the namespace.
+            client = node.create_client(GetParameters, f'{ns}/seaking_sim/get_parameters')
+            assert client.wait_for_service(timeout_sec=30)
+            reply = ros.call(client, GetParameters.Request(names=['scenario', 'clutter_lambda', 'duration']))
+            node.destroy_client(client)
+            assert values(reply.values) == [scenario[ns], 1.6, 30.0]
+        # Now let the simulators start.
+        subs += [node.create_subscription(Image, f'{ns}/sonar/sector', lambda m: None, 10) for ns in scenario]
+        subs += [node.create_subscription(LaserScan, f'{ns}/sonar/sector_info', lambda m: None, 10) for ns in scenario]
+        outs = {ns: p.communicate(timeout=60)[0] for ns, p in procs.items()}
+    finally:
+        for p in procs.values():
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGKILL)
+                p.communicate()
+        for s in subs:
+            node.destroy_subscription(s)
+    for ns, p in procs.items():
+        assert p.returncode == 0, outs[ns]
+        assert 'finished after 30 sectors' in outs[ns], outs[ns]
+    truth = {ns: ma.cloud_to_array(got[f'{ns}/sonar/truth'][-1])[0] for ns in scenario}
+    assert math.hypot(truth['/a']['x'] - truth['/b']['x'], truth['/a']['y'] - truth['/b']['y']) > 150
+    for ns, other in (('/a', '/b'), ('/b', '/a')):
+        last = ma.cloud_to_array(got[f'{ns}/tracks'][-1])
+        assert len(got[f'{ns}/tracks']) >= 15 and len(last) >= 1 and all(last['confirmed'] == 1)
+        own = np.hypot(last['x'] - truth[ns]['x'], last['y'] - truth[ns]['y'])
+        cross = np.hypot(last['x'] - truth[other]['x'], last['y'] - truth[other]['y'])
+        assert own.min() < 30.0 and cross.min() > 100.0, (ns, last[['track_id', 'x', 'y']], truth)
+
+
+def test_namespaced_package_topics_are_left_out_of_the_recorder_wait():
+    from sonar_tracking.cli.sonar_stack import _late_topics
+    topics = ['/a/tracks', '/a/sonar/sector', '/a/fls/image_info', '/clock', '/tracks']
+    assert _late_topics(topics, '/a') == ['/a/tracks', '/a/sonar/sector']
+    assert _late_topics(topics, '/') == []
