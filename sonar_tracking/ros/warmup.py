@@ -6,7 +6,7 @@ or drops messages, and a pipeline stopped soon after (``make demo`` at ``rate:=0
 A node therefore runs its component here once, before it subscribes, on a few seeded synthetic
 scans that take every compiled path the component has (the tests check that a real run
 afterwards compiles nothing new). With the cache filled this costs a fraction of a second; the
-first start after an install compiles (about 10 s on a 2-core machine).
+first start after an install compiles every kernel (seconds).
 
 The synthetic data come from a fixed seed of their own; nothing here touches the caller's
 generator or state.

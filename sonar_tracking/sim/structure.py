@@ -6,7 +6,7 @@ move; the transducer rings for the first range bins after each ping; and drivers
 log-compressed counts in which every cell below the gain floor is exactly 0. This module adds
 these, as opt-in settings (``structure.*``, ``output.*``), so the front ends can be tested
 without real data. With ``structure.kind = none`` and ``output.coding = linear_amplitude`` (the
-defaults) nothing here runs and every sector is what it was before.
+defaults) nothing here runs and a sector holds only the scene's targets, clutter and noise.
 
 Layouts (world frame, metres):
 

@@ -7,8 +7,8 @@ multiplicative (``mf``) or weighted (``wf``) fusion, the SIR particle filter (``
 cues with multiplicative fusion) and the EKF on the regions (``ekf``). Every particle method also
 starts from the same random stream of the run, so methods that take the same decisions draw the
 same particles: AF differs from WF only after a frame where it chose MF, and the comparison
-measures the fusion rule, not the draws (with a stream per method, two runs of one algorithm
-differed by up to 0.25 m of mean CLE on situation 9).
+measures the fusion rule, not the draws (with a stream per method, the draws alone move a 30-run
+mean CLE by up to 0.25 m on situation 9: ``docs/experiments/2026-11-21-fls-gpf-study.md``).
 
 Scoring, per target and frame, against the target's state as imaged (:mod:`.fls_frames`):
 

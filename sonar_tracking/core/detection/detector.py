@@ -270,7 +270,7 @@ class ActiveDetector:
             raise DetectionInputError(f'sonar pose {pose} is not finite')
         a, geometry = condition(raw, geometry, cfg.intensity)
         if raw.dtype.kind == 'f':
-            a = a.astype(raw.dtype, copy=False)  # the sensor's precision: tau compares as before
+            a = a.astype(raw.dtype, copy=False)  # tau is compared at the sensor's float precision
         t = self._time(stamp, geometry)
         tau = self.threshold
         cells = threshold_cells(a, tau, cfg.cells.merge_bins, cfg.cells.merge_beams,

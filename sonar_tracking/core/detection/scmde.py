@@ -194,8 +194,8 @@ def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None)
     """Clutter density [1/m^2] at each of ``points`` ``(N, 2)`` (sensor-frame metres).
 
     ``window`` enables the edge correction and the count fallback; without it, sparse scans
-    (fewer than three points) get 0. Points that are not finite raise ValueError (as the k-d tree
-    query this replaces did).
+    (fewer than three points) get 0. Points that are not finite, or whose spread overflows, raise
+    ValueError.
     """
     pts = np.asarray(points, dtype=float)
     m = len(pts)

@@ -28,7 +28,7 @@ how. Our design, each choice with its reason:
    echo is 2-3 range bins by 2-3 beams). Measured on 200 simulated SeaKing frames (FLS Table 5
    situations, seeds 2000-2199), targets of 10 dB or more: the 3 x 3 median in cells finds 77% at
    0.05 false regions per frame (82% at 0.7), ``trim = 1`` 96% at 0.02, the mean (``trim = 0``)
-   99.5% at 0.02; heavier-tailed (Weibull) clutter did not change the order. So the default is
+   99.5% at 0.02; heavier-tailed (Weibull) clutter does not change the order. So the default is
    ``trim = 0``; ``trim = 1`` is there for sonars with impulsive interference, where one bright
    cell must not make a detection on its own (the reason a median is used at all), at that cost
    in small targets. Samples outside the data (beyond the scan limits or the range window) are

@@ -24,8 +24,8 @@ so in the exact posterior the velocity given the position is what the prediction
 the weighted particles (eq. 8) and the velocity moments from the predicted Gaussian's conditional,
 which is eq. 8's posterior in expectation but without its Monte Carlo error (Rao-Blackwellisation).
 It matters with multiplicative fusion: its product of five cues puts most weight on a handful of
-particles, whose velocities then became the track's with a velocity spread of a few cm/s, and the
-next prediction missed the target (measured: ``docs/experiments/2026-11-21-fls-gpf-study.md``).
+particles, whose velocities would become the track's with a velocity spread of a few cm/s, and the
+next prediction would miss the target (measured: ``docs/experiments/2026-11-21-fls-gpf-study.md``).
 """
 from __future__ import annotations
 

@@ -19,18 +19,15 @@
 * **Lost (step 3).** A frame whose update does not find the target (see :mod:`.tracker`) leaves
   the prediction in place and multiplies the covariance by ``lost.inflation`` (up to
   ``lost.max_std``), so the next frame's particles search wider. The prediction between frames
-  still adds the velocity's uncertainty, so a young lost track's search keeps growing (traced, a
-  pontoon track seen twice: position std 2.7 m after one miss, 5.2 m after three). Capping the
-  spread after a miss at ``max_std`` cut the refinds that carry tracks through crossings (ten 30-run
-  sets of situations 8-11: AF identity 94, 92, 81, 91 -> 85, 87, 71, 83 %, mean CLE 0.40, 0.43,
-  0.66, 0.46 -> 0.49, 0.48, 0.73, 0.59 m), so it is not capped. A lost track that has a region
-  no other track explains within ``lost.refind_gate`` (its widened covariance plus the initial
-  spread) takes it up again: a Kalman update of the track by the region's position (noise
-  ``lost.refind_sigma``), which keeps its id and template and corrects its velocity. Confirmed
+  still adds the velocity's uncertainty, so a young lost track's search keeps growing. That growth
+  is not capped at ``max_std``: the wide search is what lets re-finding carry tracks through
+  crossings (measurements: ``docs/experiments/2026-11-27-notes-from-code.md``). A lost track
+  that has a region no other track explains within ``lost.refind_gate`` (its widened covariance
+  plus the initial spread) takes it up again: a Kalman update of the track by the region's position
+  (noise ``lost.refind_sigma``), which keeps its id and template and corrects its velocity. Confirmed
   tracks choose first; when several lost tracks and regions compete (two targets passing each
-  other), the pairs of least total squared Mahalanobis distance are taken. (Adding the template's
-  distance to each region's window to that cost, to tell unlike targets apart, made identity
-  swaps more frequent on situations 8-11: the templates of weak echoes are too alike.) A
+  other), the pairs of least total squared Mahalanobis distance are taken. The cost leaves the
+  templates out: the templates of weak echoes are too alike to tell targets apart (same notes). A
   confirmed track ends after ``lost.max_time`` without its target, a tentative one after
   ``lost.tentative_time``.
   One empty frame therefore never ends a confirmed track.

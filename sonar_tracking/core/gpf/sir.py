@@ -11,7 +11,7 @@ After resampling, the particles are *roughened* (Gordon, Salmond and Smith's boo
 jittered so that their position spread is at least the GPF's posterior floor ``min_std``. The
 cue likelihood puts most weight on a few particles, resampling copies those, and the motion model
 alone spreads them by about 0.2 m in a 5 s frame, less than a towed target wanders; without the
-jitter the SIR's cloud missed the target as the GPF's floored-at-0.25 m posterior did (numbers in
+jitter the SIR's cloud misses the target, as a GPF posterior floored at 0.25 m does (numbers in
 ``docs/experiments/2026-11-21-fls-gpf-study.md``). One floor for both particle methods keeps the
 comparison about how they use a frame.
 """
