@@ -208,7 +208,7 @@ def add_table_arguments(parser) -> None:
 
 
 def main_table(args) -> int:
-    """Run the ESC comparison at the paper's operating point; print the README table."""
+    """Run the ESC comparison at the paper's operating point; print the docs/results table."""
     from sonar_tracking.studies.esc_table import format_table, run_table
     if args.runs < 2 or args.jobs < 1 or (args.scans and args.scans < 4) or not 0 < args.cft_target < 1:
         print('error: need --runs >= 2, --jobs >= 1, --scans 0 or >= 4 and 0 < --cft-target < 1', file=sys.stderr)

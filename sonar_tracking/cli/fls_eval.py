@@ -229,7 +229,7 @@ def add_table_arguments(parser: Any) -> None:
 
 
 def main_table(args: Any) -> int:
-    """Run the FLS crossing comparison; print the README table."""
+    """Run the FLS crossing comparison; print the docs/results table."""
     from sonar_tracking.studies.fls_study import parse_methods
     from sonar_tracking.studies.fls_table import format_table, run_table
     try:

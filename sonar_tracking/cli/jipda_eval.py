@@ -1,4 +1,4 @@
-"""``sonar_eval jipda``: IMM-JIPDA against IMM-IPDA on crossing and parallel targets (the README table)."""
+"""``sonar_eval jipda``: IMM-JIPDA against IMM-IPDA on crossing and parallel targets (the docs/results table)."""
 from __future__ import annotations
 
 import sys
@@ -24,7 +24,7 @@ def add_arguments(parser) -> None:
 
 
 def main_args(args) -> int:
-    """Run the study (:mod:`sonar_tracking.studies.jipda_study`); print the README table."""
+    """Run the study (:mod:`sonar_tracking.studies.jipda_study`); print the docs/results table."""
     from sonar_tracking.studies.jipda_study import GEOMETRIES, format_table, run_study
     if args.runs < 2 or args.jobs < 1 or (args.scans and args.scans < 2):
         print('error: need --runs >= 2, --jobs >= 1 and --scans 0 or >= 2', file=sys.stderr)

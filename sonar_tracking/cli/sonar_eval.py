@@ -7,15 +7,15 @@ Subcommands:
   scenario2        ESC paper Scenario 2 (§5.2): manoeuvring target, two clutter regions
   desired-density  ESC paper Algorithm 1 (§4): the desired clutter density for an SNR
   esc-table        ESC against fixed thresholds at the paper's operating point (T_c per method for a
-                   CFT rate of 0.005), paired differences with 95 % intervals: the README table
+                   CFT rate of 0.005), paired differences with 95 % intervals: the docs/results table
   select-features  FLS paper §3: GRNN feature selection by SFS or SBS on simulated tank regions
   fls              FLS paper §5: GPF, SIR and EKF tracks on Table 5 situations or the sea trial
   fls-table        FLS paper: the crossing situations 8-11 by fusion, paired differences with 95 %
-                   intervals and where the corrections come from: the README table
+                   intervals and where the corrections come from: the docs/results table
   structure        confirmed tracks on static structure (walls, seabed, piles, ringdown), with and
                    without rejection, next to the structure-free scenes
   jipda            IMM-JIPDA against IMM-IPDA on two crossing or parallel targets in clutter, paired
-                   differences with 95 % intervals: the README table
+                   differences with 95 % intervals: the docs/results table
 
 The Monte Carlo subcommands run over --jobs processes or a Dask cluster (--cluster).
 """
@@ -49,7 +49,7 @@ def build_parser() -> argparse.ArgumentParser:
     esc_eval.add_desired_density_arguments(p)
     p.set_defaults(handler=esc_eval.main_desired_density)
     p = sub.add_parser('esc-table', help='ESC paper: every method at T_c for a CFT rate of 0.005, paired '
-                       'differences ESC - fixed with 95 %% intervals (the README table)')
+                       'differences ESC - fixed with 95 %% intervals (the docs/results table)')
     esc_eval.add_table_arguments(p)
     p.set_defaults(handler=esc_eval.main_table)
     p = sub.add_parser('select-features', help='FLS paper §3: GRNN feature selection by SFS or SBS on simulated '
@@ -61,7 +61,7 @@ def build_parser() -> argparse.ArgumentParser:
     fls_eval.add_arguments(p)
     p.set_defaults(handler=fls_eval.main_args)
     p = sub.add_parser('fls-table', help='FLS paper: the crossing situations 8-11, af (crossing switch), af18 '
-                       '(eq. 18 alone), mf, wf paired, with where the corrections come from (the README table)')
+                       '(eq. 18 alone), mf, wf paired, with where the corrections come from (the docs/results table)')
     fls_eval.add_table_arguments(p)
     p.set_defaults(handler=fls_eval.main_table)
     p = sub.add_parser('structure', help='confirmed tracks on static structure of the structured scenes, with and '
@@ -69,7 +69,7 @@ def build_parser() -> argparse.ArgumentParser:
     structure_eval.add_arguments(p)
     p.set_defaults(handler=structure_eval.main_args)
     p = sub.add_parser('jipda', help='IMM-JIPDA against IMM-IPDA on crossing and parallel targets in clutter, '
-                       'paired differences with 95 %% intervals (the README table)')
+                       'paired differences with 95 %% intervals (the docs/results table)')
     jipda_eval.add_arguments(p)
     p.set_defaults(handler=jipda_eval.main_args)
     return parser

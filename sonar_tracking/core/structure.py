@@ -68,7 +68,7 @@ it is elongated: at least ``elongated_length`` long and ``max_aspect`` times lon
 wall face, a seabed band, a pile row). Targets of the papers are 0.3-3 m, so e.g. 6 m, 3 m, 10 m^2,
 3 m at aspect 4 separate them from walls and bands. 0 switches a gate off. A target touching
 structure is one connected echo with it and is dropped with it (a clutter map masks what is on
-it); the measured behaviour and the choices are in ``docs/structure_rejection.md``.
+it); the measured behaviour and the choices are in ``docs/algorithms/structure_rejection.md``.
 
 Everything is off by default (``enabled``), so both pipelines reproduce the papers unless asked.
 """

@@ -88,7 +88,7 @@ def run_table(runs: int, seed: int, pool: RunPool | None = None, scans: int | No
 
 
 def format_table(result: dict) -> str:
-    """The README table (markdown) of :func:`run_table`'s result."""
+    """The docs/results table (markdown) of :func:`run_table`'s result."""
     lines = [f'{result["runs"]} runs, seed {result["seed"]}; T_c per method for a CFT-scan rate <= '
              f'{result["cft_target"]:g} (Table 1); CTTR over the second half of the scans; ESC - method: paired '
              f'per-run difference, 95 % interval', '',

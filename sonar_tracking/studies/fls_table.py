@@ -47,7 +47,7 @@ def run_table(runs: int, seed: int, pool: RunPool | None = None, situations=TABL
 
 
 def format_table(result: dict) -> str:
-    """The README table (markdown) of :func:`run_table`'s result."""
+    """The docs/results table (markdown) of :func:`run_table`'s result."""
     methods = result['methods']
     first = methods[0]
     head = (['situation'] + [f'{m} CLE' for m in methods] + [f'{first} − {m}' for m in methods[1:]]

@@ -257,7 +257,7 @@ def _describe(study: JipdaStudy) -> dict:
 
 
 def format_table(result: dict) -> str:
-    """The README table (markdown) of :func:`run_study`'s result."""
+    """The docs/results table (markdown) of :func:`run_study`'s result."""
     lines = [f'{result["runs"]} runs per geometry, seed {result["seed"]}; means per run; JIPDA - IPDA: paired '
              'per-run difference, 95 % interval', '',
              '| geometry | metric | IPDA | JIPDA | JIPDA − IPDA |', '|---|---|---|---|---|']

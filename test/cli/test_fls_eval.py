@@ -60,7 +60,7 @@ def test_argument_errors_from_the_parser(tmp_path, capsys, args):
 
 
 def test_fls_table_reduced_prints_the_table_and_agrees_with_sonar_eval_fls(tmp_path, capsys):
-    """The README table's command, reduced: every figure is the one `sonar_eval fls` gives for the
+    """The docs/results table's command, reduced: every figure is the one `sonar_eval fls` gives for the
     same situation, runs and seed, and the corrections add up (the EKF corrects only by regions)."""
     table, single = tmp_path / 'table.json', tmp_path / 'fls.json'
     assert main(['fls-table', '--runs', '3', '--seed', '5', '--situations', '8', '--methods', 'af,af18,ekf',

@@ -24,7 +24,7 @@ it is, the pairs with its square. With ``all`` (the default) a measurement some 
 validated starts none: that track is already testing the hypothesis that a target is there, and
 PDA moves it to the target if one is. Tentative tracks then cover the surveillance area once
 (about its area over a new track's gate area, however dense the clutter), and the pairs grow
-with the clutter. Measured on the paper's scenarios, in docs/tracker_scaling.md.
+with the clutter. Measured on the paper's scenarios, in docs/benchmarks/tracker_scaling.md.
 
 Initiation budget (not in the paper). One-point initiation starts a track on every unused
 detection, and each new track's gate is wide (the velocity prior), so in dense clutter the next
