@@ -28,7 +28,7 @@ all: test
 
 help:
 	@echo "make demo   run the simulated scenario through the pipeline and show the result"
-	@echo "make test   build with colcon, lint (ruff) and run the test suite (all but the tests marked slow)"
+	@echo "make test   build with colcon, lint (ruff, mypy) and run the test suite (all but the tests marked slow)"
 	@echo "make test-all  the same with the slow tests (soak, long studies); CI runs them too"
 	@echo "make build  colcon build into install/ (source install/setup.bash, then run executables)"
 	@echo "make bench  run the benchmarks (sonar_eval bench)"
@@ -65,8 +65,10 @@ test-slow: $(TEST_DEPS)
 test-all: $(TEST_DEPS)
 	source install/setup.bash && $(VPY) -m pytest test
 
+# ruff (rules in ruff.toml) on the whole tree; mypy (mypy.ini) on core, msgs and ros.
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 # The compiled kernels (numba) in their cache before anything runs: a fresh checkout compiles them
 # here once (~15 s), later runs load them (~1 s), so no node compiles while data queue up.

@@ -21,9 +21,10 @@ import pkgutil
 import platform
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -45,7 +46,7 @@ class Case:
     repeats: int = 30
     min_time: float = 0.002
     self_timed: bool = False
-    derived: Callable[['Result'], dict] | None = None
+    derived: Callable[[Result], dict] | None = None
 
 
 @dataclass

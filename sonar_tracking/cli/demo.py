@@ -58,10 +58,10 @@ def read_run(bag: Path) -> dict:
 def summarise_run(run: dict) -> dict:
     """Eqs. 47-49 scan by scan; a confirmed track is true when most of its confirmed scans are CTT."""
     from sonar_tracking.core.detection import convert_measurements
-    from sonar_tracking.studies.metrics import classify_tracks
-    from sonar_tracking.sim.presets import HARBOUR_SONAR_XY
     from sonar_tracking.core.tracking import TrackerConfig
     from sonar_tracking.core.tracking.management import initial_covariance
+    from sonar_tracking.sim.presets import HARBOUR_SONAR_XY
+    from sonar_tracking.studies.metrics import classify_tracks
     t0 = run['truth'][0][0]
     r0 = math.hypot(t0['x'] - HARBOUR_SONAR_XY[0], t0['y'] - HARBOUR_SONAR_XY[1])
     b0 = math.atan2(t0['y'] - HARBOUR_SONAR_XY[1], t0['x'] - HARBOUR_SONAR_XY[0])

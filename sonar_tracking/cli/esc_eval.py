@@ -16,12 +16,16 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from sonar_tracking.cli._output import table_command, write_json, write_plot
 from sonar_tracking.studies import algorithm1
 from sonar_tracking.studies.esc_study import PAPER_DESIRED_DENSITY, StudyConfig, parse_methods, run_once, summarise
-from sonar_tracking.studies.montecarlo import ClusterUnavailable, Progress, add_pool_arguments, pool_from_args, \
-    run_monte_carlo
-
-from sonar_tracking.cli._output import table_command, write_json, write_plot
+from sonar_tracking.studies.montecarlo import (
+    ClusterUnavailable,
+    Progress,
+    add_pool_arguments,
+    pool_from_args,
+    run_monte_carlo,
+)
 
 __all__ = ['add_scenario_arguments', 'main_scenario', 'add_desired_density_arguments', 'main_desired_density',
            'plot_study']

@@ -59,8 +59,8 @@ def add_arguments(parser: Any) -> None:
 def study_for(situation: int | None, preset: str | None, methods: tuple[str, ...], particles: int | None = None,
               sensor: str = 'seaking675'):
     """The :class:`~sonar_tracking.studies.fls_study.FlsStudy` of a situation or the sea-trial preset."""
-    from sonar_tracking.studies.fls_study import FlsStudy, situation_scenario
     from sonar_tracking.core.gpf import GpfConfig
+    from sonar_tracking.studies.fls_study import FlsStudy, situation_scenario
     flat: dict[str, Any] = dict(SEA_TRIAL_SETTINGS) if preset == SEA_TRIAL else {}
     if particles is not None:
         flat['particles'] = particles

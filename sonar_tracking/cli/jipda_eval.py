@@ -4,9 +4,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from sonar_tracking.studies.montecarlo import add_pool_arguments
-
 from sonar_tracking.cli._output import table_command
+from sonar_tracking.studies.montecarlo import add_pool_arguments
 
 __all__ = ['add_arguments', 'main_args']
 

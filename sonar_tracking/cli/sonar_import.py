@@ -117,7 +117,6 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``sonar_import``."""
     args = _parser().parse_args(argv)
     from sonar_tracking.core.config import ConfigError
-
     from sonar_tracking.io.importers import RecordingError, SectorBagWriter, open_recording, run_import
     try:
         options = options_from_args(args)

@@ -132,8 +132,8 @@ def _summary(scene) -> str:
 def _show_bag(args: argparse.Namespace, scene, rec, url: str | None) -> int:
     from rosbags.typesys import Stores, get_typestore
 
-    from sonar_tracking.io.bags import bag_topics, read_bag
     from sonar_tracking.cli.view import TOPICS
+    from sonar_tracking.io.bags import bag_topics, read_bag
     ns = '/' + args.ns.strip('/') + '/' if args.ns.strip('/') else '/'
     names = {ns + rel: rel for rel in TOPICS}
     topics = {t.name: t.msgtype for t in bag_topics(args.bag) if t.name in names}

@@ -41,9 +41,9 @@ def _row(name: str, rejection: str, c) -> dict:
 def main_args(args: Any) -> int:
     """Run ``sonar_eval structure``; returns the exit status (1 when a rejecting run kept a track on
     structure)."""
-    from sonar_tracking.studies.structure_study import STRUCTURE_REJECTION, combine, plain_twin, run_structure_study
-    from sonar_tracking.sim import SimConfig
     from sonar_tracking.cli._output import write_json
+    from sonar_tracking.sim import SimConfig
+    from sonar_tracking.studies.structure_study import STRUCTURE_REJECTION, combine, plain_twin, run_structure_study
     if args.frames < 1:
         print('error: --frames must be >= 1', file=sys.stderr)
         return 2

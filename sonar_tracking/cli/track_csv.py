@@ -27,9 +27,10 @@ import argparse
 import csv
 import math
 import sys
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, Iterable, Iterator, TextIO
+from typing import Any, BinaryIO, TextIO
 
 import numpy as np
 
@@ -472,7 +473,7 @@ def main_args(args: argparse.Namespace) -> int:
     try:
         config = load_params(args.params) if args.params else TrackerConfig()
         try:
-            source = open(args.input, 'rb')
+            source = open(args.input, 'rb')  # noqa: SIM115 - closed by the `with source` below
         except OSError as exc:
             raise InputError(f'cannot read {args.input}: {exc.strerror}') from None
         try:
@@ -488,7 +489,7 @@ def main_args(args: argparse.Namespace) -> int:
             print(f'note: no clutter_density column: using clutter.density = {config.clutter.density:g} /m^2',
                   file=errors)
         try:
-            out = sys.stdout if args.output == '-' else open(args.output, 'w', newline='')
+            out = sys.stdout if args.output == '-' else open(args.output, 'w', newline='')  # noqa: SIM115
         except OSError as exc:
             print(f'error: cannot write {args.output}: {exc.strerror}', file=errors)
             return 2

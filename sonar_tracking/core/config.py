@@ -13,13 +13,15 @@ from __future__ import annotations
 
 import array
 import dataclasses
-import functools
 import math
 import typing
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any, Iterator, Mapping
+from typing import Any, TypeVar
 
 __all__ = ['Config', 'ConfigError', 'Setting', 'setting']
+
+_C = TypeVar('_C', bound='Config')
 
 
 class ConfigError(ValueError):
@@ -80,7 +82,8 @@ def setting(default: Any, description: str, *, unit: str = '', low: float | None
     meta = dict(description=description, unit=unit, low=low, high=high, low_open=low_open,
                 high_open=high_open, choices=choices, read_only=read_only)
     if isinstance(default, (list, tuple)):
-        return dataclasses.field(default_factory=lambda d=tuple(default): d, metadata=meta)
+        frozen = tuple(default)
+        return dataclasses.field(default_factory=lambda: frozen, metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
 
 
@@ -119,11 +122,16 @@ def _leaf_type(annotation: Any) -> type:
     return annotation
 
 
-@functools.lru_cache(maxsize=None)
+_HINTS: dict[type, dict[str, Any]] = {}
+
+
 def _hints(cls: type) -> dict[str, Any]:
     """``typing.get_type_hints`` of a config class, once per class (it is slow, and a study builds
     configurations in every run)."""
-    return typing.get_type_hints(cls)
+    hints = _HINTS.get(cls)
+    if hints is None:
+        hints = _HINTS[cls] = typing.get_type_hints(cls)
+    return hints
 
 
 @dataclass(frozen=True)
@@ -171,7 +179,7 @@ class Config:
         return out
 
     @classmethod
-    def from_flat(cls, values: Mapping[str, Any], base: 'Config | None' = None) -> 'Config':
+    def from_flat(cls: type[_C], values: Mapping[str, Any], base: _C | None = None) -> _C:
         """Build a config from dotted names, starting from ``base`` (or the defaults).
 
         Unknown names raise ConfigError so that a typo in a parameter file is not ignored.
@@ -183,7 +191,7 @@ class Config:
             raise ConfigError(f'unknown setting(s) {unknown} for {cls.__name__}')
         return base._with(dict(values), '')
 
-    def _with(self, values: dict[str, Any], prefix: str) -> 'Config':
+    def _with(self: _C, values: dict[str, Any], prefix: str) -> _C:
         changes: dict[str, Any] = {}
         for f in dataclasses.fields(self):
             value = getattr(self, f.name)
@@ -202,7 +210,7 @@ class Config:
             text = str(exc)
             raise ConfigError(text if text.startswith(prefix) else f'{prefix}{text}') from None
 
-    def replace(self, **changes: Any) -> 'Config':
+    def replace(self: _C, **changes: Any) -> _C:
         """Copy with fields replaced (validated again)."""
         return dataclasses.replace(self, **changes)
 

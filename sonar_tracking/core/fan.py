@@ -52,7 +52,7 @@ class PolarCanvas:
         self.height = int(math.ceil((x_max - x_min) / resolution))
         self.width = int(math.ceil((y_max - y_min) / resolution))
         self.fill = fill
-        self.image = np.full((self.height, self.width), fill, dtype=dtype)
+        self.image: np.ndarray = np.full((self.height, self.width), fill, dtype=dtype)
         # Pixel-centre coordinates in the canvas frame.
         self._x = self.x_max - (np.arange(self.height) + 0.5) * resolution
         self._y = self.y_max - (np.arange(self.width) + 0.5) * resolution
@@ -63,7 +63,7 @@ class PolarCanvas:
         self._cached = 0
 
     @classmethod
-    def with_size(cls, extent: tuple[float, float, float, float], size_px: int, **kw) -> 'PolarCanvas':
+    def with_size(cls, extent: tuple[float, float, float, float], size_px: int, **kw) -> PolarCanvas:
         """A canvas of ``extent`` whose longer side has ``size_px`` pixels."""
         x0, x1, y0, y1 = extent
         return cls(x0, x1, y0, y1, max(x1 - x0, y1 - y0) / size_px, **kw)

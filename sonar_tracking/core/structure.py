@@ -303,7 +303,7 @@ class PolarBackground:
         k = self.bins_per_cell
         if k > 1:  # a map cell echoed if any of its bins did
             pad = self._rows * k - geometry.n_bins
-            echo = np.pad(echo, ((0, pad), (0, 0))).reshape(self._rows, k, -1).any(axis=1)
+            echo = np.asarray(np.pad(echo, ((0, pad), (0, 0))).reshape(self._rows, k, -1).any(axis=1))
         c = cols[ok]
         decay = _decay(self._t_last, self._t_first, c, t, self.config.time_constant)
         self._s[:, c] = self._s[:, c] * decay + echo[:, ok]
@@ -390,8 +390,8 @@ class GridBackground:
         i0, j0 = int(math.floor((x - reach) / cell)) - 1, int(math.floor((y - reach) / cell)) - 1
         if (i0, j0, n) == (self._i0, self._j0, self._n):
             return
-        new = {'s': np.zeros(n * n, np.float32), 'w': np.zeros(n * n, np.float32), 't_last': np.zeros(n * n),
-               't_first': np.full(n * n, np.nan)}
+        new: dict[str, np.ndarray] = {'s': np.zeros(n * n, np.float32), 'w': np.zeros(n * n, np.float32),
+                                      't_last': np.zeros(n * n), 't_first': np.full(n * n, np.nan)}
         if self._n:
             # Copy the overlap of the old window (global indices i0.., j0..) into the new one.
             a0, a1 = max(i0, self._i0), min(i0 + n, self._i0 + self._n)
@@ -498,7 +498,7 @@ class SectorBackground:
             return mode == 'sensor', mode == 'world'
         if not self.moving:
             if self._first_pose is None:
-                self._first_pose = tuple(pose)
+                self._first_pose = (float(pose[0]), float(pose[1]), float(pose[2]))
             p0 = self._first_pose
             moved = math.hypot(pose[0] - p0[0], pose[1] - p0[1]) > 0.5 * max(geometry.range_resolution, 1e-9)
             turned = abs(math.remainder(pose[2] - p0[2], 2 * math.pi)) > 0.5 * geometry.angle_increment

@@ -17,7 +17,6 @@ import numpy as np
 
 from sonar_tracking.core.fls.grid import ImageGrid
 from sonar_tracking.core.sector import MAX_CELLS
-
 from sonar_tracking.msgs.errors import AdapterError
 from sonar_tracking.msgs.image import image_to_array
 from sonar_tracking.msgs.pointcloud import cloud_to_array
@@ -64,7 +63,7 @@ def map_info_to_grid(msg: Any) -> ImageGrid:
         raise AdapterError(f'image_info says {values["width"]} x {values["height"]} pixels, more than {MAX_CELLS}')
     yaw = 2.0 * math.atan2(values['qz'], values['qw'])
     try:
-        return ImageGrid(resolution=values['resolution'], width=values['width'], height=values['height'],
+        return ImageGrid(resolution=values['resolution'], width=int(values['width']), height=int(values['height']),
                          origin_x=values['x'], origin_y=values['y'], origin_yaw=math.remainder(yaw, 2 * math.pi))
     except ValueError as exc:
         raise AdapterError(f'image_info: {exc}') from exc

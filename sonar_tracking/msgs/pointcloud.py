@@ -8,7 +8,8 @@ with its fields, so "no records" stays distinguishable from "no message" (DESIGN
 """
 from __future__ import annotations
 
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any, Literal
 
 import numpy as np
 
@@ -27,14 +28,19 @@ DATATYPES: dict[int, np.dtype] = {
 _CODES = {(dt.kind, dt.itemsize): code for code, dt in DATATYPES.items()}
 
 
+def _structured_fields(dtype: np.dtype) -> list[tuple[str, np.dtype, int]]:
+    """``(name, field dtype, offset)`` of every field of a structured dtype, in order; AdapterError
+    for a dtype without named fields."""
+    fields = dtype.fields
+    if dtype.names is None or fields is None:
+        raise AdapterError(f'a point cloud needs a structured dtype with named fields, got {dtype}')
+    return [(name, fields[name][0], int(fields[name][1])) for name in dtype.names]
+
+
 def dtype_to_fields(dtype: np.dtype) -> list[tuple[str, int, int, int]]:
     """``[(name, offset, datatype, count), ...]`` for a structured dtype of numeric fields."""
-    dtype = np.dtype(dtype)
-    if dtype.names is None:
-        raise AdapterError(f'a point cloud needs a structured dtype with named fields, got {dtype}')
     out = []
-    for name in dtype.names:
-        ftype, offset = dtype.fields[name][:2]
+    for name, ftype, offset in _structured_fields(np.dtype(dtype)):
         base, shape = ftype.base, ftype.shape
         count = int(np.prod(shape)) if shape else 1
         code = _CODES.get((base.kind, base.itemsize))
@@ -50,7 +56,7 @@ def dtype_to_fields(dtype: np.dtype) -> list[tuple[str, int, int, int]]:
 def fields_to_dtype(fields: Sequence[Any], point_step: int, is_bigendian: bool = False) -> np.dtype:
     """The structured dtype of a cloud's ``fields`` (PointField messages or 4-tuples)."""
     names, formats, offsets = [], [], []
-    order = '>' if is_bigendian else '<'
+    order: Literal['<', '>'] = '>' if is_bigendian else '<'
     for f in fields:
         try:
             name, offset, datatype, count = (f if isinstance(f, tuple) else
@@ -133,7 +139,7 @@ def array_to_cloud(array: np.ndarray, *, stamp_ns: int = 0, frame_id: str = '',
     types = types or rclpy_types()
     pf = [types.new('sensor_msgs/msg/PointField', name=n, offset=o, datatype=d, count=c)
           for n, o, d, c in fields]
-    floats = [n for n in a.dtype.names if a.dtype.fields[n][0].base.kind == 'f']
+    floats = [n for n, ftype, _ in _structured_fields(a.dtype) if ftype.base.kind == 'f']
     dense = all(np.isfinite(a[n]).all() for n in floats)
     return types.new(
         'sensor_msgs/msg/PointCloud2', header=header(stamp_ns, frame_id, types), height=height,
@@ -144,8 +150,7 @@ def array_to_cloud(array: np.ndarray, *, stamp_ns: int = 0, frame_id: str = '',
 
 def _little_endian(dtype: np.dtype) -> np.dtype:
     names, formats, offsets = [], [], []
-    for name in dtype.names:
-        ftype, offset = dtype.fields[name][:2]
+    for name, ftype, offset in _structured_fields(dtype):
         base = ftype.base.newbyteorder('<')
         names.append(name)
         formats.append(base if not ftype.shape else np.dtype((base, ftype.shape)))

@@ -14,7 +14,6 @@ from typing import Any
 import numpy as np
 
 from sonar_tracking.core.sector import GeometryError, SectorGeometry
-
 from sonar_tracking.msgs.errors import AdapterError
 from sonar_tracking.msgs.image import image_to_array
 from sonar_tracking.msgs.pairing import StampPairer

@@ -28,12 +28,24 @@ from std_msgs.msg import Float64
 from std_srvs.srv import SetBool, Trigger
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.ros import warmup
 from sonar_tracking.core.config import setting
-from sonar_tracking.core.detection import (ActiveDetector, DetectionInputError, DetectorConfig, best_track_focus,
-                                           resolve_desired_density)
+from sonar_tracking.core.detection import (
+    ActiveDetector,
+    DetectionInputError,
+    DetectorConfig,
+    best_track_focus,
+    resolve_desired_density,
+)
 from sonar_tracking.resources import config_path
-from sonar_tracking.ros import SectorInput, SectorInputConfig, SonarNode, latest_profile, output_profile, run_node
+from sonar_tracking.ros import (
+    SectorInput,
+    SectorInputConfig,
+    SonarNode,
+    latest_profile,
+    output_profile,
+    run_node,
+    warmup,
+)
 
 __all__ = ['DetectorNodeConfig', 'ActiveDetectorNode', 'main', 'desired_density']
 

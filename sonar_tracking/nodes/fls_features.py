@@ -32,9 +32,9 @@ from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, PointCloud2
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.msgs.map_info import grid_to_map_info
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FlsConfig, FlsFrame, FlsInputError, FlsProcessor
+from sonar_tracking.msgs.map_info import grid_to_map_info
 from sonar_tracking.ros import SectorInput, SectorInputConfig, SonarNode, output_profile, run_node
 
 __all__ = ['FlsNodeConfig', 'FlsFeaturesNode', 'main']

@@ -40,13 +40,20 @@ from nav_msgs.msg import MapMetaData
 from sensor_msgs.msg import Image, PointCloud2
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.msgs.map_info import fls_frame
-from sonar_tracking.ros import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FeatureConfig
 from sonar_tracking.core.gpf import GpfConfig, GpfInputError, GpfTracker
-from sonar_tracking.ros import (InputConfig, PoseConfig, PoseSource, SonarNode, TrackOutput, TrackOutputConfig,
-                                 run_node)
+from sonar_tracking.msgs.map_info import fls_frame
+from sonar_tracking.ros import (
+    InputConfig,
+    PoseConfig,
+    PoseSource,
+    SonarNode,
+    TrackOutput,
+    TrackOutputConfig,
+    run_node,
+    warmup,
+)
 
 __all__ = ['GpfNodeConfig', 'GpfTrackerNode', 'main']
 

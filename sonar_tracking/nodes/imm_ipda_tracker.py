@@ -33,12 +33,19 @@ import numpy as np
 from sensor_msgs.msg import PointCloud2
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.ros import warmup
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig, TrackingError
 from sonar_tracking.core.tracking.detections import detections_to_measurements
-from sonar_tracking.ros import (CoverageSource, InputConfig, PoseConfig, SonarNode, TrackOutput, TrackOutputConfig,
-                                 run_node)
+from sonar_tracking.ros import (
+    CoverageSource,
+    InputConfig,
+    PoseConfig,
+    SonarNode,
+    TrackOutput,
+    TrackOutputConfig,
+    run_node,
+    warmup,
+)
 
 __all__ = ['TrackerNodeConfig', 'ImmIpdaTrackerNode', 'main']
 

@@ -20,8 +20,8 @@ from sensor_msgs.msg import Image, LaserScan
 
 import sonar_tracking.msgs as ma
 from sonar_tracking.core.sector import GeometryError
-from sonar_tracking.ros import InputConfig, SonarNode, output_profile, run_node
 from sonar_tracking.io.importers import ProjectedOptions, condition_sector, projected_to_sector
+from sonar_tracking.ros import InputConfig, SonarNode, output_profile, run_node
 
 __all__ = ['AdapterConfig', 'ProjectedSonarAdapter', 'convert', 'main']
 

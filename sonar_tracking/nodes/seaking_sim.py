@@ -15,21 +15,29 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from nav_msgs.msg import Odometry
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosgraph_msgs.msg import Clock
-from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Image, LaserScan, PointCloud2
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.msgs.odometry import pose_to_odometry
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fan import PolarCanvas, to_mono8
+from sonar_tracking.msgs.odometry import pose_to_odometry
+from sonar_tracking.ros import (
+    CLOCK_TOPIC,
+    ConfigParameters,
+    Pacer,
+    PacingConfig,
+    SubscriberGate,
+    declare_choice,
+    output_profile,
+    run_node,
+)
 from sonar_tracking.sim import SimConfig, SimSector, Simulator, describe
 from sonar_tracking.sim.presets import SCENARIOS
-from sonar_tracking.ros import (CLOCK_TOPIC, ConfigParameters, Pacer, PacingConfig, SubscriberGate, declare_choice,
-                                 output_profile, run_node)
 
 __all__ = ['SimNodeConfig', 'SeaKingSimNode', 'main']
 

@@ -10,8 +10,8 @@ from sonar_tracking.ros.coverage import CoverageSource
 from sonar_tracking.ros.diagnostics import StageDiagnostics
 from sonar_tracking.ros.gate import SubscriberGate
 from sonar_tracking.ros.node import InputConfig, SonarNode
-from sonar_tracking.ros.params import ConfigParameters, declare_choice, descriptor_for, start_value
 from sonar_tracking.ros.pacing import Pacer, PacingConfig
+from sonar_tracking.ros.params import ConfigParameters, declare_choice, descriptor_for, start_value
 from sonar_tracking.ros.pose import Pose, PoseConfig, PoseSource, check_sonar_pose
 from sonar_tracking.ros.qos import CLOCK_TOPIC, INPUT_QOS, input_profile, latest_profile, output_profile
 from sonar_tracking.ros.runtime import configure_dds, prepare_process, run_node

@@ -17,7 +17,6 @@ from sensor_msgs.msg import LaserScan
 import sonar_tracking.msgs as ma
 from sonar_tracking.core.tracking.coverage import Coverage
 from sonar_tracking.core.tracking.errors import TrackingInputError
-
 from sonar_tracking.ros.pose import PoseSource
 
 __all__ = ['CoverageSource']
@@ -45,7 +44,10 @@ class CoverageSource:
         window = self.infos.get(stamp_ns)
         if window is None:
             return None
-        x, y, yaw = self.pose.pose_at(stamp_ns)
+        pose = self.pose.pose_at(stamp_ns)   # never None without a wait limit
+        if pose is None:
+            return None
+        x, y, yaw = pose
         try:
             return Coverage(x, y, yaw, *window)
         except TrackingInputError as exc:

@@ -24,8 +24,8 @@ class StageDiagnostics:
         self.processed = 0
         self.dropped: dict[str, int] = {}
         self._recent_drops = 0
-        self._latency = deque(maxlen=200)
-        self._stamps = deque(maxlen=200)
+        self._latency: deque[float] = deque(maxlen=200)
+        self._stamps: deque[float] = deque(maxlen=200)
         self.values: dict[str, str] = {}
         self.listeners: dict[str, int] = {}
         self._last_report: dict[str, float] = {}

@@ -9,7 +9,7 @@ subscriber of incompatible QoS never connects).
 from __future__ import annotations
 
 import time
-from typing import Sequence
+from collections.abc import Sequence
 
 __all__ = ['SubscriberGate']
 

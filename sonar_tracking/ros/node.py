@@ -15,14 +15,14 @@ diagnostics, and then only wires subscriptions and publishers to its core compon
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 
 from sonar_tracking.core.config import Config, setting
-
 from sonar_tracking.ros.diagnostics import StageDiagnostics
 from sonar_tracking.ros.params import ConfigParameters
 from sonar_tracking.ros.qos import INPUT_QOS, input_profile
@@ -87,13 +87,14 @@ class SonarNode(Node):
         guard = self.time if newest is None else TimeGuard(newest)
         verdict, back = guard.check(stamp_ns, self.config.time_jump_reset)
         if verdict == LATE:
+            last_ns = guard.last_ns or 0   # a late stamp always has a last one
             self.say('warning', f'{what} at {stamp_ns / 1e9:.6f} s is not newer than the last one '
-                     f'({guard.last_ns / 1e9:.6f} s): dropped', 'stamp_order')
+                     f'({last_ns / 1e9:.6f} s): dropped', 'stamp_order')
             return False
         if verdict == RESET:
             self.get_logger().warning(f'time went back by {back:.3f} s (a new recording?): {self.get_name()} '
                                       'starts again')
-            last = guard.last_ns
+            last = guard.last_ns or 0   # a jump back always has a last stamp
             self.time.reset()
             on_reset(last)
         return True

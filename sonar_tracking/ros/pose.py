@@ -9,8 +9,9 @@ odometry the static ``sonar_pose`` parameter ``[x, y, yaw_deg]`` is the pose.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 from nav_msgs.msg import Odometry
 
@@ -49,7 +50,7 @@ class PoseConfig(Config):
 class PoseSource:
     """Odometry subscription + pose buffer + static fallback for one node."""
 
-    def __init__(self, node: 'SonarNode', config: Callable[[], PoseConfig], qos, on_bad: Callable[[str], None],
+    def __init__(self, node: SonarNode, config: Callable[[], PoseConfig], qos, on_bad: Callable[[str], None],
                  on_pose: Callable[[], None] = lambda: None) -> None:
         """``on_bad(reason)`` hears a dropped odometry message, ``on_pose()`` every new pose."""
         self.node, self.config, self.on_bad, self.on_pose = node, config, on_bad, on_pose

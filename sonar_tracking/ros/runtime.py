@@ -6,8 +6,9 @@ import os
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from importlib import resources
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING
 
 from sonar_tracking import process
 
@@ -52,7 +53,7 @@ def private_domain() -> int:
     return domain
 
 
-def run_node(factory: Callable[[], 'rclpy.node.Node'], args: list[str] | None = None) -> int:
+def run_node(factory: Callable[[], rclpy.node.Node], args: list[str] | None = None) -> int:
     """Init rclpy, spin the node until Ctrl-C or shutdown, clean up; returns the exit status."""
     prepare_process()
     import rclpy

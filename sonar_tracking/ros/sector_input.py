@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from sensor_msgs.msg import Image, LaserScan
@@ -28,7 +28,6 @@ from sensor_msgs.msg import Image, LaserScan
 import sonar_tracking.msgs as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.sector import SectorError, SectorGeometry, check_sector
-
 from sonar_tracking.ros.node import InputConfig, SonarNode
 from sonar_tracking.ros.pose import Pose, PoseConfig, PoseSource
 

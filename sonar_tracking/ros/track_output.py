@@ -16,7 +16,6 @@ from visualization_msgs.msg import MarkerArray
 
 import sonar_tracking.msgs as ma
 from sonar_tracking.core.config import Config, setting
-
 from sonar_tracking.ros.qos import output_profile
 
 __all__ = ['TrackOutputConfig', 'TrackOutput']

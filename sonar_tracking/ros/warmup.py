@@ -56,7 +56,9 @@ def tracker(config: TrackerConfig) -> float:
         records['cov_xx'] = records['cov_yy'] = 4.0
         records['clutter_density'] = 1e-5
         if k == 7:   # a source without covariance or density fields
-            records = np.rec.fromarrays([records['x'], records['y']], names='x,y')
+            xy_only = np.zeros(len(records), [('x', '<f8'), ('y', '<f8')])
+            xy_only['x'], xy_only['y'] = records['x'], records['y']
+            records = xy_only
         z, R, rho, _ = detections_to_measurements(records)
         trk.step(float(k), z, R, rho)
     return time.perf_counter() - started

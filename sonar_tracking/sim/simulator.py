@@ -61,7 +61,7 @@ class SimConfig(Config):
             raise ConfigError(f'structure.kind = {kind} is laid out for the {where} sensor, not preset {self.preset}')
 
     @classmethod
-    def for_scenario(cls, scenario: str, preset: str = '', **flat) -> 'SimConfig':
+    def for_scenario(cls, scenario: str, preset: str = '', **flat) -> SimConfig:
         """Defaults of ``scenario`` on ``preset`` ('' = the scenario's sensor), then ``flat`` overrides."""
         try:
             info = scenario_info(scenario)

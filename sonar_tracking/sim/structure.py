@@ -158,7 +158,7 @@ class Texture:
     std_db: float
 
     @classmethod
-    def random(cls, rng: np.random.Generator, std_db: float, scale: float, n: int = 16) -> 'Texture':
+    def random(cls, rng: np.random.Generator, std_db: float, scale: float, n: int = 16) -> Texture:
         wavelength = scale * np.exp(rng.uniform(0.0, math.log(4.0), n))
         angle = rng.uniform(0.0, 2 * math.pi, n)
         k = (2 * math.pi / wavelength)[:, None] * np.stack([np.cos(angle), np.sin(angle)], axis=1)

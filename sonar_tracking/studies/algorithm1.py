@@ -29,11 +29,11 @@ import numpy as np
 
 from sonar_tracking.core.detection import convert_measurements
 from sonar_tracking.core.detection.scmde import PolarWindow
+from sonar_tracking.core.tracking.config import PAPER_INITIATION, TrackerConfig
+from sonar_tracking.core.tracking.tracker import ImmIpdaTracker
 from sonar_tracking.sim.amplitude import snr_linear
 from sonar_tracking.sim.motion import ScriptedTrajectory
 from sonar_tracking.sim.presets import HARBOUR_SONAR_XY
-from sonar_tracking.core.tracking.config import PAPER_INITIATION, TrackerConfig
-from sonar_tracking.core.tracking.tracker import ImmIpdaTracker
 from sonar_tracking.studies.confirmation import T_GRID, ConfirmationSweep
 from sonar_tracking.studies.esc_study import resolution_cell_area
 from sonar_tracking.studies.metrics import classify_tracks

@@ -19,8 +19,9 @@ sectors (decoded to linear amplitude) to :class:`~..fls.pipeline.FlsProcessor` (
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import numpy as np
 

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 import cv2
 import numpy as np
@@ -258,7 +258,7 @@ class RegionDataset:
     def __len__(self) -> int:
         return len(self.labels)
 
-    def subset(self, mask: np.ndarray) -> 'RegionDataset':
+    def subset(self, mask: np.ndarray) -> RegionDataset:
         return RegionDataset(self.features[mask], self.labels[mask], self.frame[mask])
 
     def counts(self) -> dict[str, int]:

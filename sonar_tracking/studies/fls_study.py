@@ -281,8 +281,8 @@ def cue_statistics(frames: list[TrackingFrame], config: FlsConfig | None = None,
     """Calibration of :data:`sonar_tracking.core.gpf.cues.CUE_SPECS`: for every cue feature, the
     median magnitude on targets (``ref``) and the root-mean-square change of its transformed value
     at a target's imaged centre between consecutive frames (``sigma``)."""
-    from sonar_tracking.core.gpf.cues import CUE_SPECS, CueSpec, window_pixels
     from sonar_tracking.core.fls.windows import WindowImage
+    from sonar_tracking.core.gpf.cues import CUE_SPECS, CueSpec, window_pixels
     config = config or FlsConfig()
     feats = sorted(CUE_SPECS)
     values: dict[int, list[np.ndarray]] = {}

@@ -51,9 +51,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from sonar_tracking.core.detection import convert_measurements
-from sonar_tracking.sim.presets import HARBOUR_SONAR_XY
 from sonar_tracking.core.tracking.config import TrackerConfig
 from sonar_tracking.core.tracking.tracker import ImmIpdaTracker
+from sonar_tracking.sim.presets import HARBOUR_SONAR_XY
 from sonar_tracking.studies.esc_study import resolution_cell_area
 from sonar_tracking.studies.metrics import evaluate_scan, gospa, gospa_assignment, paired_difference
 from sonar_tracking.studies.montecarlo import Progress, RunPool, run_monte_carlo

@@ -22,8 +22,9 @@ import multiprocessing.forkserver
 import os
 import sys
 import time
+from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from typing import Any, Callable, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -96,7 +97,7 @@ class RunPool:
         self._executor: ProcessPoolExecutor | None = None
         self._client = self._local = None
 
-    def __enter__(self) -> 'RunPool':
+    def __enter__(self) -> RunPool:
         if self.cluster:
             self._connect()
         return self

@@ -27,19 +27,20 @@ studies).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from sonar_tracking.core.detection import ActiveDetector, DetectorConfig
 from sonar_tracking.core.fls import FlsConfig
-from sonar_tracking.sim import SimConfig, Simulator
-from sonar_tracking.sim.structure import Structure
 from sonar_tracking.core.tracking.config import TrackerConfig
 from sonar_tracking.core.tracking.detections import detections_to_measurements
 from sonar_tracking.core.tracking.tracker import ImmIpdaTracker
+from sonar_tracking.sim import SimConfig, Simulator
+from sonar_tracking.sim.structure import Structure
 from sonar_tracking.studies.fls_frames import sim_amplitudes, simulate_tracking_frames
 from sonar_tracking.studies.fls_study import FlsStudy, run_methods
 

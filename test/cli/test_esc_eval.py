@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 import yaml
 
-from sonar_tracking.core.detection import DesiredDensityTable
 from sonar_tracking.cli.sonar_eval import main
+from sonar_tracking.core.detection import DesiredDensityTable
 
 
 @pytest.mark.parametrize('scenario, methods', [('scenario1', 'esc,fixed:2'), ('scenario2', 'esc,fixed:3')])

@@ -14,10 +14,10 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 import sonar_tracking.msgs as ma
 from sonar_tracking.core.detection import ActiveDetector
 from sonar_tracking.core.tracking import ImmIpdaTracker
-from sonar_tracking.nodes.active_detector import DetectorNodeConfig
 from sonar_tracking.core.tracking.detections import detections_to_measurements
-from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
 from sonar_tracking.io.bags import bag_topics, read_bag
+from sonar_tracking.nodes.active_detector import DetectorNodeConfig
+from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
 
 pytestmark = pytest.mark.ros
 

@@ -14,8 +14,16 @@ import numpy as np
 import pytest
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.cli.sonar_echo import (WIDTH, EchoError, csv_header, csv_rows, format_table, json_line,
-                                             record_fields, table_columns)
+from sonar_tracking.cli.sonar_echo import (
+    WIDTH,
+    EchoError,
+    csv_header,
+    csv_rows,
+    format_table,
+    json_line,
+    record_fields,
+    table_columns,
+)
 
 
 def tracks() -> np.ndarray:

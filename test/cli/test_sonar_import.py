@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 
 import sonar_tracking.msgs as ma
+from sonar_tracking.cli.sonar_import import main as sonar_import
 from sonar_tracking.core.fls import FlsProcessor
 from sonar_tracking.io.bags import read_bag
-from sonar_tracking.cli.sonar_import import main as sonar_import
 
 POSE = (3.0, -2.0, 0.5)                # sonar x, y [m], yaw [rad] in the world
 N_BINS, BIN = 200, 0.05                # samples per ping and their spacing [m]
@@ -72,7 +72,7 @@ def ping_samples(bearing: float, rng: np.random.Generator, n: int = N_BINS) -> n
 
 
 def typestore(ros1: bool, defs: dict[str, str] | None = None):
-    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
     ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_JAZZY)
     for name, text in (defs or {}).items():
         ts.register(get_types_from_msg(text, name))
@@ -103,7 +103,8 @@ class BagOut:
 
     def __init__(self, path: Path, ros1: bool, ts, storage: str = 'mcap', chunk_bytes: int = 0) -> None:
         from rosbags.rosbag1 import Writer as W1
-        from rosbags.rosbag2 import StoragePlugin, Writer as W2
+        from rosbags.rosbag2 import StoragePlugin
+        from rosbags.rosbag2 import Writer as W2
         self.ros1, self.ts, self.conns = ros1, ts, {}
         plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
         self.w = W1(path) if ros1 else W2(path, version=8, storage_plugin=plugin)
@@ -622,9 +623,9 @@ def test_nothing_to_import_exits_2(tmp_path, capsys):
 
 def test_picture_of_a_recorded_run(tmp_path):
     """--picture draws what a stack recorded: the last FLS image with its regions, track trails, path."""
-    from sonar_tracking.msgs.map_info import grid_to_map_info
     from sonar_tracking.core.fls.grid import ImageGrid
     from sonar_tracking.core.records import GPF_TRACK_DTYPE, REGION_DTYPE
+    from sonar_tracking.msgs.map_info import grid_to_map_info
     ts = typestore(False)
     types = ma.RosbagsTypes(ts)
     out = BagOut(tmp_path / 'run', False, ts)

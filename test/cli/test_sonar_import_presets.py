@@ -10,12 +10,12 @@ from pathlib import Path
 import pytest
 import yaml
 
+from sonar_tracking.cli.sonar_import import load_preset
+from sonar_tracking.io.importers import ImportOptions
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
 from sonar_tracking.nodes.fls_features import FlsNodeConfig
 from sonar_tracking.nodes.gpf_tracker import GpfNodeConfig
 from sonar_tracking.nodes.imm_ipda_tracker import TrackerNodeConfig
-from sonar_tracking.io.importers import ImportOptions
-from sonar_tracking.cli.sonar_import import load_preset
 
 SENSORS = Path(__file__).resolve().parents[2] / 'config' / 'sensors'
 NODES = {'active_detector': DetectorNodeConfig, 'fls_features': FlsNodeConfig, 'gpf_tracker': GpfNodeConfig,

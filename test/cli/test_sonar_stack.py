@@ -306,12 +306,13 @@ def test_two_harbour_stacks_in_namespaces_track_their_own_targets_without_cross_
 
         global_names = {'/rosout', '/parameter_events', '/clock'}
         for ns in scenario:
-            ros.wait(lambda: publishers(f'{ns}/tracks') == [('imm_ipda_tracker', ns)], 60, f'{ns}/tracks publisher')
-            ros.wait(lambda: publishers(f'{ns}/detections') == [('active_detector', ns)], 30, f'{ns}/detections')
-            ros.wait(lambda: publishers(f'{ns}/sonar/truth') == [('seaking_sim', ns)], 60, f'{ns}/sonar/truth')
+            ros.wait(lambda ns=ns: publishers(f'{ns}/tracks') == [('imm_ipda_tracker', ns)], 60,
+                     f'{ns}/tracks publisher')
+            ros.wait(lambda ns=ns: publishers(f'{ns}/detections') == [('active_detector', ns)], 30, f'{ns}/detections')
+            ros.wait(lambda ns=ns: publishers(f'{ns}/sonar/truth') == [('seaking_sim', ns)], 60, f'{ns}/sonar/truth')
             for name in ('seaking_sim', 'active_detector', 'imm_ipda_tracker'):
-                ros.wait(lambda: f'{ns}/tracks' in topics_of(name, ns) or f'{ns}/sonar/sector' in topics_of(name, ns),
-                         30, f'{ns}/{name} in the graph')
+                ros.wait(lambda ns=ns, name=name: f'{ns}/tracks' in topics_of(name, ns)
+                         or f'{ns}/sonar/sector' in topics_of(name, ns), 30, f'{ns}/{name} in the graph')
                 # Every topic of the node is in its namespace (none in the root, none in the other's).
                 names = topics_of(name, ns)
                 assert all(t.startswith(f'{ns}/') or t in global_names for t in names), (name, ns, sorted(names))

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig
 from sonar_tracking.cli import track_csv
+from sonar_tracking.core.tracking import ImmIpdaTracker, TrackerConfig
 
 CONFIG = Path(__file__).resolve().parents[2] / 'config' / 'imm_ipda.yaml'
 

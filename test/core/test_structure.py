@@ -8,8 +8,15 @@ import pytest
 
 from sonar_tracking.core.config import ConfigError
 from sonar_tracking.core.sector import SectorGeometry
-from sonar_tracking.core.structure import (GridBackground, PolarBackground, SectorBackground, StructureConfig,
-                                           echo_shapes, is_structure_shape, vetoed_groups)
+from sonar_tracking.core.structure import (
+    GridBackground,
+    PolarBackground,
+    SectorBackground,
+    StructureConfig,
+    echo_shapes,
+    is_structure_shape,
+    vetoed_groups,
+)
 
 CFG = StructureConfig(enabled=True, time_constant=60.0, persistence=0.5, min_echo_time=7.5, margin=0)
 

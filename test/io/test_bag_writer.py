@@ -13,8 +13,7 @@ import numpy as np
 import pytest
 import yaml
 
-from sonar_tracking.io.bags import OPEN_TAIL, BagWriter, repair
-from sonar_tracking.io.bags import TruncatedBagWarning, bag_state, bag_topics, read_bag
+from sonar_tracking.io.bags import OPEN_TAIL, BagWriter, TruncatedBagWarning, bag_state, bag_topics, read_bag, repair
 
 TOPIC, TYPE = '/numbers', 'std_msgs/msg/String'
 

@@ -297,7 +297,7 @@ def test_kill_9_at_random_moments_loses_at_most_the_last_second(tmp_path, ros):
             for t in batch:
                 start(t)
 
-            def advance():
+            def advance(batch=batch):
                 for t in batch:
                     if 'target' not in t and on_disk(t['bag']) >= t['n']:
                         t['target'] = source.count + t['k']
@@ -357,7 +357,7 @@ def test_kill_9_at_random_moments_loses_at_most_the_last_second(tmp_path, ros):
         _, err = rep.communicate(timeout=60)
         assert rep.returncode == 0, err
         n = len(numbers(t['bag'])[0])
-        ros.wait(lambda: len(got) >= n, 20.0, 'the replayed messages')
+        ros.wait(lambda got=got, n=n: len(got) >= n, 20.0, 'the replayed messages')
         ros.node.destroy_subscription(sub)
         assert len(got) == n and 'not closed by its recorder' in err and f'replayed {n} messages' in err
 
@@ -412,7 +412,7 @@ def test_split_by_duration_and_size_from_the_command_line(tmp_path, ros):
         for name, opts in (('dur', ['--split-duration', '0.3']), ('size', ['--split-size', '100k'])):
             bag = tmp_path / name
             rec = tool('bag_record', '-o', str(bag), *opts, topic)
-            ros.wait(lambda: on_disk(bag) >= 150, 30.0, '150 messages on disk')
+            ros.wait(lambda bag=bag: on_disk(bag) >= 150, 30.0, '150 messages on disk')
             stop(rec)
             info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
             assert len(info['relative_file_paths']) >= 4, info['relative_file_paths']

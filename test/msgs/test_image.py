@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sonar_tracking.msgs import AdapterError, ENCODING_DTYPES, array_to_image, image_to_array
+from sonar_tracking.msgs import ENCODING_DTYPES, AdapterError, array_to_image, image_to_array
 
 
 def raw_image(a: np.ndarray, encoding: str, pad: int = 0, bigendian: bool = False, data=None):

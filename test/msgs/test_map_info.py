@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.msgs.map_info import fls_image, grid_to_map_info, map_info_to_grid
 from sonar_tracking.core.fls.grid import ImageGrid
+from sonar_tracking.msgs.map_info import fls_image, grid_to_map_info, map_info_to_grid
 
 
 def test_the_message_rule_checks_encoding_size_and_nan():

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.msgs import AdapterError, GPF_TRACK_DTYPE, TRACK_DTYPE, covariance_ellipse, track_markers
+from sonar_tracking.msgs import GPF_TRACK_DTYPE, TRACK_DTYPE, AdapterError, covariance_ellipse, track_markers
 
 ARROW, SPHERE, CYLINDER, TEXT, DELETEALL = 0, 2, 3, 9, 3
 

@@ -8,8 +8,18 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sonar_tracking.msgs import (AdapterError, DETECTION_DTYPE, GPF_TRACK_DTYPE, RECORD_DTYPES, REGION_DTYPE,
-                          TRACK_DTYPE, TRUTH_DTYPE, array_to_cloud, cloud_to_array, dtype_to_fields)
+from sonar_tracking.msgs import (
+    DETECTION_DTYPE,
+    GPF_TRACK_DTYPE,
+    RECORD_DTYPES,
+    REGION_DTYPE,
+    TRACK_DTYPE,
+    TRUTH_DTYPE,
+    AdapterError,
+    array_to_cloud,
+    cloud_to_array,
+    dtype_to_fields,
+)
 from sonar_tracking.msgs.pointcloud import DATATYPES
 
 BASES = [np.dtype(d) for d in ('i1', 'u1', 'i2', 'u2', 'i4', 'u4', 'f4', 'f8')]
@@ -162,10 +172,10 @@ def test_unsupported_dtypes_refused(dtype, match):
 
 def test_datatype_table_is_pointfield_numbering():
     from sensor_msgs.msg import PointField
-    assert DATATYPES == {PointField.INT8: np.dtype('i1'), PointField.UINT8: np.dtype('u1'),
+    assert {PointField.INT8: np.dtype('i1'), PointField.UINT8: np.dtype('u1'),
                          PointField.INT16: np.dtype('i2'), PointField.UINT16: np.dtype('u2'),
                          PointField.INT32: np.dtype('i4'), PointField.UINT32: np.dtype('u4'),
-                         PointField.FLOAT32: np.dtype('f4'), PointField.FLOAT64: np.dtype('f8')}
+                         PointField.FLOAT32: np.dtype('f4'), PointField.FLOAT64: np.dtype('f8')} == DATATYPES
 
 
 def test_serialized_cloud_crosses_between_rclpy_and_rosbags(rosbags_types):

@@ -9,9 +9,15 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
-from sonar_tracking.msgs import (AdapterError, SectorPairer, array_to_image, geometry_to_scan, scan_to_geometry,
-                          sector_from_messages)
 from sonar_tracking.core.sector import GeometryError, SectorGeometry
+from sonar_tracking.msgs import (
+    AdapterError,
+    SectorPairer,
+    array_to_image,
+    geometry_to_scan,
+    scan_to_geometry,
+    sector_from_messages,
+)
 
 GEOM = SectorGeometry(angle_min=-0.6, angle_increment=0.006, n_beams=200, range_min=500.0,
                       range_max=4000.0, n_bins=201, ping_period=0.005, scan_time=1.0)

@@ -139,7 +139,7 @@ def test_moving_platform_regions_in_the_world_frame(ros, launch):
     origins = [grid.origin_x for _, grid, _, _ in frames]
     assert all(b >= a for a, b in zip(origins, origins[1:])) and origins[-1] > origins[0] + 8.0
     found = 0
-    for _, grid, regions, frame_id in frames:
+    for _, _grid, regions, frame_id in frames:
         assert frame_id == 'world'
         for r in regions:
             d = np.hypot(path[:, 0] - r['x'], path[:, 1] - r['y']).min()

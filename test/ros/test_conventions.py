@@ -16,6 +16,7 @@ pytestmark = pytest.mark.ros
 
 def test_simulator_stamps_wall_time_at_rate_1(ros, inproc):
     from sensor_msgs.msg import Image
+
     from sonar_tracking.nodes.seaking_sim import SeaKingSimNode
     lag = []
     sub = ros.node.create_subscription(Image, '/sonar/sector',
@@ -32,6 +33,7 @@ def test_simulator_stamps_wall_time_at_rate_1(ros, inproc):
 def test_simulator_off_wall_time_stamps_simulated_time_and_publishes_clock(ros, inproc):
     from rosgraph_msgs.msg import Clock
     from sensor_msgs.msg import Image
+
     from sonar_tracking.nodes.seaking_sim import SeaKingSimNode
     stamps, clocks = [], []
     subs = [ros.node.create_subscription(Image, '/sonar/sector', lambda m: stamps.append(ma.header_ns(m)), 100),
@@ -51,6 +53,7 @@ def test_esc_service_and_parameter_agree_and_the_threshold_is_never_stale(ros, i
     from sensor_msgs.msg import Image, LaserScan
     from std_msgs.msg import Float64
     from std_srvs.srv import SetBool
+
     from sonar_tracking.nodes.active_detector import ActiveDetectorNode
     node = inproc(ActiveDetectorNode)
     client = ros.node.create_client(SetBool, '/active_detector/esc/enable')

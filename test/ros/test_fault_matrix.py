@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.msgs.map_info import grid_to_map_info
 from sonar_tracking.core.fls.grid import ImageGrid
 from sonar_tracking.core.sector import SectorGeometry
+from sonar_tracking.msgs.map_info import grid_to_map_info
 
 pytestmark = pytest.mark.ros
 

@@ -78,8 +78,8 @@ def test_reliable_readers_report_incompatible_best_effort_writers(ros, node_unde
 
 
 def test_a_best_effort_sector_stream_gives_detections(ros, node_under_test):
-    from sensor_msgs.msg import Image, LaserScan, PointCloud2
     from rclpy.qos import QoSProfile
+    from sensor_msgs.msg import Image, LaserScan, PointCloud2
     node_under_test('active_detector', input_qos='sensor_data', **{'esc.enabled': False, 'threshold.initial': 5.0})
     got = []
     sub = ros.node.create_subscription(PointCloud2, '/detections', got.append, QoSProfile(depth=50))

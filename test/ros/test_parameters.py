@@ -53,6 +53,7 @@ def test_every_parameter_keeps_its_type_whatever_is_set(ros, inproc, path):
 def test_integers_for_doubles_are_converted_and_read_only_is_in_the_descriptor(ros, inproc):
     from rcl_interfaces.srv import DescribeParameters
     from rclpy.parameter import Parameter
+
     from sonar_tracking.nodes.gpf_tracker import GpfTrackerNode
     node = inproc(GpfTrackerNode)
     assert node.set_parameters([Parameter('cues.features', value=[20, 17, 3])])[0].successful
@@ -71,6 +72,7 @@ def test_integers_for_doubles_are_converted_and_read_only_is_in_the_descriptor(r
 
 def test_a_refusal_names_the_setting_once(inproc):
     from rclpy.parameter import Parameter
+
     from sonar_tracking.nodes.active_detector import ActiveDetectorNode
     node = inproc(ActiveDetectorNode)
     r = node.set_parameters([Parameter('threshold.initial', value=50.0)])[0]

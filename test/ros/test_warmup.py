@@ -104,16 +104,16 @@ def test_after_the_warm_up_a_real_run_compiles_nothing(script):
 def test_the_tracker_warm_up_keeps_settings_its_shortcut_would_break():
     """The warm-up lowers T_c to confirm within its scans; where that breaks a rule (T_c above the
     termination threshold), it runs with the settings as they are."""
-    from sonar_tracking.ros import warmup
     from sonar_tracking.core.tracking import TrackerConfig
+    from sonar_tracking.ros import warmup
     cfg = TrackerConfig.from_flat({'existence.terminate': 0.6, 'existence.initial': 0.7, 'existence.confirm': 0.9})
     assert warmup.tracker(cfg) > 0.0
 
 
 @pytest.mark.ros
 def test_a_failing_warm_up_is_logged_and_the_node_starts(inproc, monkeypatch):
-    from sonar_tracking.ros import warmup
     from sonar_tracking.nodes.imm_ipda_tracker import ImmIpdaTrackerNode
+    from sonar_tracking.ros import warmup
     from sonar_tracking.ros.node import SonarNode
     said = []
 

@@ -6,8 +6,16 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.sim import (AmplitudeConfig, AmplitudeModel, HarbourConfig, HarbourSonar, Scene, Target,
-                                     exponential_pd, exponential_pfa)
+from sonar_tracking.sim import (
+    AmplitudeConfig,
+    AmplitudeModel,
+    HarbourConfig,
+    HarbourSonar,
+    Scene,
+    Target,
+    exponential_pd,
+    exponential_pfa,
+)
 from sonar_tracking.sim.motion import StaticTrajectory
 from sonar_tracking.sim.presets import HARBOUR_SONAR_XY
 

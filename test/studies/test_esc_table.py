@@ -18,7 +18,7 @@ def synthetic_runs(n_runs: int, scans: int, false_until: dict, ctt: dict) -> lis
         for name, t_false in false_until.items():
             nf = np.zeros((scans, len(T_GRID)), np.int32)
             if i == 0:
-                nf[:, T_GRID < t_false] = 2
+                nf[:, t_false > T_GRID] = 2
             has = np.zeros((scans, len(T_GRID)), bool)
             has[:, :] = i in ctt[name]
             run[name] = {'n_false_t': nf, 'has_ctt_t': has}

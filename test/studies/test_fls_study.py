@@ -8,10 +8,18 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.studies.fls_frames import TrackingFrame
-from sonar_tracking.studies.fls_study import (crossing_window, paired_difference, parse_methods, run_cle,
-                                                score_run, situation_scenario, summarise, switch_thresholds)
 from sonar_tracking.core.records import GPF_TRACK_DTYPE
+from sonar_tracking.studies.fls_frames import TrackingFrame
+from sonar_tracking.studies.fls_study import (
+    crossing_window,
+    paired_difference,
+    parse_methods,
+    run_cle,
+    score_run,
+    situation_scenario,
+    summarise,
+    switch_thresholds,
+)
 
 GATE, CROSS = 1.5, 2.0
 
@@ -199,9 +207,9 @@ def test_results_do_not_depend_on_the_number_of_processes():
 def test_methods_share_the_random_stream_so_equal_decisions_give_equal_tracks():
     """Common random numbers: AF that always chooses WF (thresholds no cue can reach) tracks exactly
     as WF does; MF, deciding differently, does not."""
+    from sonar_tracking.core.gpf import GpfConfig
     from sonar_tracking.studies.fls_frames import simulate_tracking_frames
     from sonar_tracking.studies.fls_study import FlsStudy, run_methods
-    from sonar_tracking.core.gpf import GpfConfig
     frames = simulate_tracking_frames('fls8', 3)[:6]
     study = FlsStudy('fls8', ('af', 'mf', 'wf'), GpfConfig.from_flat({'fusion.thresholds': (1e6,)}))
     out = run_methods(study, frames, np.random.SeedSequence(11))

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.studies.jipda_study import JipdaStudy, _score, run_once, simulate, summarise
 from sonar_tracking.core.records import TRACK_DTYPE
+from sonar_tracking.studies.jipda_study import JipdaStudy, _score, run_once, simulate, summarise
 
 
 @pytest.mark.parametrize('geometry', ['crossing', 'parallel'])

@@ -7,10 +7,20 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.studies import (TAU_FALSE, TAU_TRUE, MetricError, classify_tracks, confirmed_false_track_rate,
-                                      confirmed_true_track_rate, evaluate_scan, ftd_distances, gospa, ospa,
-                                      position_rmse)
 from sonar_tracking.core.records import TRACK_DTYPE
+from sonar_tracking.studies import (
+    TAU_FALSE,
+    TAU_TRUE,
+    MetricError,
+    classify_tracks,
+    confirmed_false_track_rate,
+    confirmed_true_track_rate,
+    evaluate_scan,
+    ftd_distances,
+    gospa,
+    ospa,
+    position_rmse,
+)
 
 P0 = np.diag([25.0, 25.0, 75.0, 75.0])
 

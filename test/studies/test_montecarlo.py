@@ -10,9 +10,9 @@ import sys
 import numpy as np
 import pytest
 
+from sonar_tracking.cli.sonar_eval import main
 from sonar_tracking.studies.esc_study import StudyConfig, parse_methods, run_once
 from sonar_tracking.studies.montecarlo import ClusterUnavailable, Progress, RunPool, run_monte_carlo
-from sonar_tracking.cli.sonar_eval import main
 
 # Dask workers import the run function by name: it must live in the package, not in this test module.
 STUDY = StudyConfig(scans=6, methods=parse_methods('esc,fixed:4'))

@@ -7,9 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.studies.structure_study import count_structure_tracks, run_structure_study, structure_distance
 from sonar_tracking.core.records import GPF_TRACK_DTYPE
 from sonar_tracking.sim.structure import StructureConfig, build_structure
+from sonar_tracking.studies.structure_study import count_structure_tracks, run_structure_study, structure_distance
 
 
 def frame(*tracks):

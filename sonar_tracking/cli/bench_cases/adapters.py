@@ -95,8 +95,9 @@ def _array_to_cloud():
 
 
 def _array_to_cloud_loop():
-    from sonar_tracking.msgs import array_to_cloud
     from sensor_msgs.msg import PointCloud2
+
+    from sonar_tracking.msgs import array_to_cloud
     recs = _records()
     template = array_to_cloud(recs[:1])
     layout = _cloud_layout(template)

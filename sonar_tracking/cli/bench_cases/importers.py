@@ -31,9 +31,9 @@ def _turn():
 def _projected():
     from rosbags.typesys import Stores, get_typestore
 
-    from sonar_tracking.msgs import RosbagsTypes
     from sonar_tracking.io.importers import ImportOptions, projected_to_sector
     from sonar_tracking.io.importers.msgdefs import register_builtin
+    from sonar_tracking.msgs import RosbagsTypes
     store = get_typestore(Stores.ROS2_JAZZY)
     register_builtin(store)
     t = RosbagsTypes(store)

@@ -8,6 +8,7 @@ def _sim_harbour_sector():
     """``seaking_sim``'s work for one harbour sector (simulate, convert, publish) without a fan viewer."""
     import rclpy
     from rclpy.context import Context
+
     from sonar_tracking.nodes.seaking_sim import SeaKingSimNode
     from sonar_tracking.ros.runtime import configure_dds, private_domain
     configure_dds()

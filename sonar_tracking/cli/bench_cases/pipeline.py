@@ -18,6 +18,7 @@ import numpy as np
 
 from sonar_tracking.cli.bench import Case, register
 
+
 def _latency(n_sectors: int = 100, rate_hz: float = 10.0):
     def measure() -> list[float]:
         from sonar_tracking.ros.runtime import configure_dds, private_domain
@@ -28,8 +29,8 @@ def _latency(n_sectors: int = 100, rate_hz: float = 10.0):
         from sensor_msgs.msg import Image, LaserScan, PointCloud2
 
         import sonar_tracking.msgs as ma
-        from sonar_tracking.sim import SimConfig, Simulator
         from sonar_tracking.resources import config_path
+        from sonar_tracking.sim import SimConfig, Simulator
 
         sim = Simulator(SimConfig.for_scenario('scenario1', duration=0.0), np.random.default_rng(0))
         sectors = [sim.next_sector() for _ in range(n_sectors)]

@@ -46,8 +46,8 @@ def _file(per_scan: int) -> Path:
 
 
 def _read():
-    from sonar_tracking.core.tracking import TrackerConfig
     from sonar_tracking.cli.track_csv import DetectionReader
+    from sonar_tracking.core.tracking import TrackerConfig
     path = _file(20)
 
     def once() -> float:

@@ -50,10 +50,9 @@ def _stack(view: str | None):
 
 
 def _seconds_per_scan(view: str | None) -> float:
+    from sonar_tracking.io.bags import read_bag
     from sonar_tracking.resources import config_path
     from sonar_tracking.ros.runtime import private_domain
-
-    from sonar_tracking.io.bags import read_bag
     tmp = Path(tempfile.mkdtemp(prefix='bench_view_'))
     try:
         cmd = [sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', '--config',

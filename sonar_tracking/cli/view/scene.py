@@ -32,11 +32,10 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.msgs.map_info import fls_image, map_info_to_grid
+from sonar_tracking.cli.view import IMAGE_TOPICS, TOPICS
 from sonar_tracking.core.fan import PolarCanvas, fan_extent, to_mono8
 from sonar_tracking.core.intensity import CODINGS, decode
-
-from sonar_tracking.cli.view import IMAGE_TOPICS, TOPICS
+from sonar_tracking.msgs.map_info import fls_image, map_info_to_grid
 
 __all__ = ['TOPICS', 'IMAGE_TOPICS', 'SceneLogger', 'blueprint']  # topics re-exported from the package
 

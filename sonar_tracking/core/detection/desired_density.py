@@ -7,9 +7,9 @@ The table (``config/desired_density.yaml``, made by ``sonar_eval desired-density
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 import yaml
@@ -40,7 +40,7 @@ class DesiredDensityTable:
             raise TableError('table densities must be finite and > 0')
 
     @classmethod
-    def load(cls, path: str | Path) -> 'DesiredDensityTable':
+    def load(cls, path: str | Path) -> DesiredDensityTable:
         """Read ``entries: [{snr_db: ..., desired_clutter_density: ...}, ...]`` from YAML."""
         try:
             data = yaml.safe_load(Path(path).read_text())

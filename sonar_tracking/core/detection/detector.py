@@ -289,9 +289,9 @@ class ActiveDetector:
         b = geometry.angle_min + cells.cols[keep] * geometry.angle_increment
         sigma_r = cfg.cells.sigma_r or dr / _SQRT12
         sigma_b = math.radians(cfg.cells.sigma_theta_deg) or geometry.angle_increment / _SQRT12
-        sigma_r = _extent_sigma(sigma_r, cells.span_rows[keep], dr)
-        sigma_b = _extent_sigma(sigma_b, cells.span_cols[keep], geometry.angle_increment)
-        xy, cov = convert_measurements(r, b, sigma_r, sigma_b, pose, cfg.cells.conversion == 'unbiased')
+        sigma_rs = _extent_sigma(sigma_r, cells.span_rows[keep], dr)
+        sigma_bs = _extent_sigma(sigma_b, cells.span_cols[keep], geometry.angle_increment)
+        xy, cov = convert_measurements(r, b, sigma_rs, sigma_bs, pose, cfg.cells.conversion == 'unbiased')
         r_hi = geometry.range_max + dr / 2
         r_lo = min(max(0.0, geometry.range_min - dr / 2, cfg.intensity.blank_range), r_hi)
         window = PolarWindow(r_lo, r_hi,

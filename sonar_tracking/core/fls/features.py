@@ -381,8 +381,8 @@ def region_features(image: np.ndarray, labels: np.ndarray, n: int | None = None,
             np.minimum.at(first, own, np.arange(own.size))  # each region's first pixel
             ql = levels.ravel()[idx[first[1:][lonely]]]
             h[np.flatnonzero(lonely), ql, ql] = 1.0
-        cols = sorted(set(wanted) & _GROUPS['glcm'])
-        out[:, cols] = glcm_features(h, cols)
+        glcm_cols = sorted(set(wanted) & _GROUPS['glcm'])
+        out[:, glcm_cols] = glcm_features(h, glcm_cols)
 
     out[~present] = np.nan
     return out[:, wanted]

@@ -99,9 +99,8 @@ def trimmed_mean(values: np.ndarray, window_bins: int, window_beams: int, trim: 
         # Fast path: sums, counts, max and min from box filters and grey morphology.
         ksize = (window_beams, window_bins)  # OpenCV takes (width, height)
         zero = np.where(valid, v, 0.0).astype(np.float32)
-        box = dict(ddepth=-1, ksize=ksize, normalize=False, borderType=cv2.BORDER_CONSTANT)
-        total = cv2.boxFilter(zero, **box)
-        count = cv2.boxFilter(valid.astype(np.float32), **box)
+        total = cv2.boxFilter(zero, -1, ksize, normalize=False, borderType=cv2.BORDER_CONSTANT)
+        count = cv2.boxFilter(valid.astype(np.float32), -1, ksize, normalize=False, borderType=cv2.BORDER_CONSTANT)
         with np.errstate(invalid='ignore', divide='ignore'):
             if trim == 0:
                 return np.where(count > 0, total / count, np.nan).astype(np.float32)

@@ -29,7 +29,7 @@ __all__ = ['GRNN', 'RankScaler', 'balanced_error']
 class RankScaler:
     """Maps each feature through its training distribution: mid-rank / n in [0, 1]."""
 
-    def fit(self, x: np.ndarray) -> 'RankScaler':
+    def fit(self, x: np.ndarray) -> RankScaler:
         x = _matrix(x, 'training features')
         self.sorted_ = np.sort(x, axis=0)
         return self
@@ -66,7 +66,7 @@ class GRNN:
             raise ValueError(f'GRNN sigma = {sigma} must be a finite number > 0')
         self.sigma = float(sigma)
 
-    def fit(self, x: np.ndarray, y: np.ndarray) -> 'GRNN':
+    def fit(self, x: np.ndarray, y: np.ndarray) -> GRNN:
         """Store the training samples (one pass, no iteration: the network is its samples)."""
         x = _matrix(x, 'training features')
         y = np.asarray(y)

@@ -18,13 +18,14 @@ from __future__ import annotations
 import math
 from collections import deque
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
 from sonar_tracking.core.config import Config, setting
 from sonar_tracking.core.fan import PolarCanvas, fan_extent
-from sonar_tracking.core.sector import SectorGeometry
 from sonar_tracking.core.fls.grid import ImageGrid
+from sonar_tracking.core.sector import SectorGeometry
 
 __all__ = ['ImageConfig', 'ImageBuilder', 'ImageTooLargeError', 'canvas_for', 'grid_image']
 
@@ -89,7 +90,7 @@ class ImageBuilder:
         extent = (x0, x1, y0, y1)
         if extent != self._extent:
             self._resize(extent)
-        return self.canvas.paint(values, geometry, pose)
+        return cast(PolarCanvas, self.canvas).paint(values, geometry, pose)   # made by the first _resize
 
     def _resize(self, extent: tuple[float, float, float, float]) -> None:
         x0, x1, y0, y1 = extent

@@ -32,6 +32,7 @@ import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -169,7 +170,7 @@ class FlsProcessor:
     def _clear(self) -> None:
         self._pending = 0
         self._last_stamp = -math.inf
-        self._pose = (0.0, 0.0, 0.0)
+        self._pose: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._geometry: SectorGeometry | None = None
         self._t_sectors = 0.0
 
@@ -219,7 +220,8 @@ class FlsProcessor:
             self.reset()
             raise FlsInputError(str(exc)) from None
         self._pending += 1
-        self._last_stamp, self._pose, self._geometry = stamp, tuple(map(float, pose)), geometry
+        self._last_stamp, self._geometry = stamp, geometry
+        self._pose = cast(tuple[float, float, float], tuple(map(float, pose)))
         self._t_sectors += time.perf_counter() - t0
         if step.ends or self.config.image.publish == 'sector':
             frames.append(self._emit(sweep_end=step.ends))
@@ -229,13 +231,26 @@ class FlsProcessor:
         """The frame of the sectors painted since the last one, if any (e.g. at the end of a log)."""
         return self._emit() if self._pending else None
 
+    def _last_geometry(self) -> SectorGeometry:
+        """The geometry of the last sector painted (there is one before any frame is made)."""
+        if self._geometry is None:
+            raise RuntimeError('no sector has been painted yet')
+        return self._geometry
+
+    def _grid_background(self) -> GridBackground:
+        """The world-grid background of the persistence veto (made at the first structure check)."""
+        if self.background is None:
+            raise RuntimeError('the structure background has not been made yet')
+        return self.background
+
     def _cell_weight(self, grid: ImageGrid) -> np.ndarray:
-        g = self._geometry
+        g = self._last_geometry()
         key = (grid, self._pose, g.angle_increment, g.range_resolution)
-        if key != self._weight_key:
-            self._weight = cells_per_pixel(grid, self._pose, g.angle_increment, g.range_resolution)
+        weight = self._weight
+        if key != self._weight_key or weight is None:
+            weight = self._weight = cells_per_pixel(grid, self._pose, g.angle_increment, g.range_resolution)
             self._weight_key = key
-        return self._weight
+        return weight
 
     def _emit(self, sweep_end: bool = True) -> FlsFrame:
         c = self.config
@@ -285,7 +300,7 @@ class FlsProcessor:
             structure |= is_structure_shape(length, width, area, sc)
         if sc.persistence_veto:
             if self.background is None:
-                g = self._geometry
+                g = self._last_geometry()
                 sensor_cell = max(g.range_resolution, 0.5 * (g.range_min + g.range_max) * g.angle_increment)
                 self.background = GridBackground(sc, sc.world_cell or max(res, sensor_cell))
             t = self._last_stamp
@@ -306,20 +321,20 @@ class FlsProcessor:
         rows, cols = np.nonzero(image > 1.0)
         if rows.size:
             x, y = grid.pixel_to_point(rows, cols)
-            on = self.background.persistent(x, y, self._last_stamp)
+            on = self._grid_background().persistent(x, y, self._last_stamp)
             out[rows[on], cols[on]] = True
         return out
 
     def _learn(self, image: np.ndarray, raw: np.ndarray, grid: ImageGrid, t: float) -> None:
         """One look of the background at every painted pixel; echo where above the growth level."""
         level = np.float32(10.0 ** (self.config.segment.grow_db / 10.0))
-        g = self._geometry
+        g = self._last_geometry()
         reach = g.range_max + g.range_resolution + grid.resolution
         if grid.origin_yaw == 0.0:  # the builder's images: x along columns, y along rows
             xs, _ = grid.pixel_to_point(np.zeros(grid.width), np.arange(grid.width))
             _, ys = grid.pixel_to_point(np.arange(grid.height), np.zeros(grid.height))
-            self.background.update_raster(xs, ys, np.isfinite(raw), image > level, self._pose[:2], reach, t)
+            self._grid_background().update_raster(xs, ys, np.isfinite(raw), image > level, self._pose[:2], reach, t)
         else:
             rows, cols = np.nonzero(np.isfinite(raw))
             x, y = grid.pixel_to_point(rows, cols)
-            self.background.update([(x, y, image[rows, cols] > level)], self._pose[:2], reach, t)
+            self._grid_background().update([(x, y, image[rows, cols] > level)], self._pose[:2], reach, t)

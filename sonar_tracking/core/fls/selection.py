@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -58,7 +58,8 @@ def sfs(error: Criterion, features: Sequence[int], max_features: int | None = No
     """Sequential forward selection (Table 4) minimising ``error(subset)``."""
     remaining = sorted(set(features))
     stop = len(remaining) if max_features is None else min(max_features, len(remaining))
-    result, chosen = SelectionResult('sfs'), ()
+    result = SelectionResult('sfs')
+    chosen: tuple[int, ...] = ()
     while len(chosen) < stop:
         scores = [(error(tuple(sorted(chosen + (x,)))), x) for x in remaining]
         best_err, best_x = min(scores)  # ties: the lower feature number

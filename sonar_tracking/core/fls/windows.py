@@ -178,7 +178,7 @@ class WindowImage:
             b = min(k, a + chunk)
             self._chunk(r[a:b], c[a:b], size, want, out[a:b], None if background is None else background[a:b],
                         None if has is None else has[a:b])
-        if ring:
+        if has is not None:   # the ring group was asked for
             if not has.all():
                 self._fallback(r, c, size, has, background, groups, counts)
             mean = out[:, 3]

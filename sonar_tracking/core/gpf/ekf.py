@@ -23,10 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from sonar_tracking.core.config import Config, setting
-from sonar_tracking.core.tracking.gating import gate_threshold
 from sonar_tracking.core.gpf.config import GpfConfig
 from sonar_tracking.core.gpf.filters import Ekf, polar_measurement
 from sonar_tracking.core.gpf.tracker import GpfTracker
+from sonar_tracking.core.tracking.gating import gate_threshold
 
 __all__ = ['EkfConfig', 'EkfTracker', 'polar_measurement']
 

@@ -43,18 +43,22 @@ __all__ = ['TrackFilter', 'GaussianPF', 'SirPF', 'Ekf', 'FILTERS', 'polar_measur
 
 
 class TrackFilter:
-    """The interface (the default methods are those of a filter whose state is the Gaussian alone)."""
+    """The interface (the default methods are those of a filter whose state is the Gaussian alone).
+
+    ``rng`` is the tracker's generator; it is None only for a filter that does not weigh the image
+    (the EKF draws nothing).
+    """
 
     #: Name of the method (``GpfTracker(method=...)``).
     name = ''
     #: Whether the filter weighs the image (particle filters) or only regions (the EKF).
     weighs_image = True
 
-    def predict(self, tracks: list[GpfTrack], dt: float, q: float, k: int, rng: np.random.Generator) -> None:
+    def predict(self, tracks: list[GpfTrack], dt: float, q: float, k: int, rng: np.random.Generator | None) -> None:
         """Move every track ``dt`` seconds on (``q`` the motion model's noise, ``k`` particles)."""
         raise NotImplementedError
 
-    def particles(self, tracks: list[GpfTrack], k: int, rng: np.random.Generator) -> list[np.ndarray]:
+    def particles(self, tracks: list[GpfTrack], k: int, rng: np.random.Generator | None) -> list[np.ndarray]:
         """The ``(K, 4)`` particles each track weighs on this frame."""
         raise NotImplementedError
 
@@ -64,13 +68,13 @@ class TrackFilter:
         raise NotImplementedError
 
     def accepted(self, tr: GpfTrack, particles: np.ndarray, weights: np.ndarray, floor: float,
-                 rng: np.random.Generator) -> None:
+                 rng: np.random.Generator | None) -> None:
         """The track took the posterior of this frame."""
 
     def missed(self, tr: GpfTrack, inflation: float) -> None:
         """The frame did not see the target; ``tr.cov`` is already widened (step 3)."""
 
-    def restart(self, tr: GpfTrack, k: int, rng: np.random.Generator) -> None:
+    def restart(self, tr: GpfTrack, k: int, rng: np.random.Generator | None) -> None:
         """The track (born, or re-found on a region) starts again from its Gaussian."""
 
     def update_on_regions(self, tracks: list[GpfTrack], xy: np.ndarray, sensor: tuple[float, float, float]

@@ -44,6 +44,7 @@ The measurements behind this choice are in ``docs/experiments/2026-11-21-fls-gpf
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from scipy.special import logsumexp
@@ -133,10 +134,7 @@ def fuse_many(log_p: np.ndarray, positions: np.ndarray, thresholds: np.ndarray, 
     crowded = np.zeros(n, bool) if crowded is None else np.asarray(crowded, bool)
     prior = cue_spreads(positions, np.full((n, 1, k), 1.0 / k))[:, 0]
     inv = prior[:, None] / np.maximum(cue_spreads(positions, cue_weights(log_p)), 1e-300)
-    if mode == 'af':
-        use_mf = ~crowded & np.all(inv > np.asarray(thresholds), axis=1)
-    else:
-        use_mf = np.full(n, mode == 'mf')
+    use_mf = (~crowded & np.all(inv > np.asarray(thresholds), axis=1)) if mode == 'af' else np.full(n, mode == 'mf')
     out: list[Fused | None] = [None] * n
     mf = np.flatnonzero(use_mf)
     if mf.size:
@@ -149,4 +147,4 @@ def fuse_many(log_p: np.ndarray, positions: np.ndarray, thresholds: np.ndarray, 
         fused = weighted(log_p[wf], a)
         for j, i in enumerate(wf):
             out[i] = Fused(fused[j], WF, a[j], inv[i])
-    return out
+    return cast(list[Fused], out)   # every track is MF or WF

@@ -58,6 +58,8 @@ def sample_gaussian(mean: np.ndarray, cov: np.ndarray, k: int, rng: np.random.Ge
     """``k`` draws ``(k, n)`` of ``N(mean, cov)``, from ``rng`` or from given standard normal
     numbers ``z (k, n)``."""
     if z is None:
+        if rng is None:
+            raise ValueError('sample_gaussian needs rng or z')
         z = rng.standard_normal((k, mean.size))
     return mean[None, :] + z @ _factor(cov).T
 

@@ -157,9 +157,7 @@ def template_may_update(match: float, position: np.ndarray, others: np.ndarray, 
     distance) may update it, other tracks' estimates being at ``others (T, 2)``."""
     if config.rate <= 0.0 or not match < config.match:
         return False
-    if len(others) and np.min(np.hypot(others[:, 0] - position[0], others[:, 1] - position[1])) < config.guard:
-        return False
-    return True
+    return not (len(others) and np.min(np.hypot(others[:, 0] - position[0], others[:, 1] - position[1])) < config.guard)
 
 
 def blend_template(template: np.ndarray, observed: np.ndarray, rate: float) -> np.ndarray:

@@ -5,8 +5,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sonar_tracking.core.records import GPF_TRACK_DTYPE
 from sonar_tracking.core.gpf.fusion import MF
+from sonar_tracking.core.records import GPF_TRACK_DTYPE
 
 __all__ = ['GpfTrack', 'tracks_to_records']
 
@@ -27,7 +27,7 @@ class GpfTrack:
     track_id: int
     mean: np.ndarray
     cov: np.ndarray
-    template: np.ndarray
+    template: np.ndarray | None        # None: measured again at the next update (the cue set changed)
     born: float
     stamp: float
     last_seen: float

@@ -43,6 +43,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -260,6 +261,8 @@ class GpfTracker:
         used = np.zeros(len(xy), bool)
         frame = None
         if self.filter.weighs_image:
+            if img is None or grid is None:
+                raise GpfInputError(f'the {self.method} filter weighs the image: a frame needs its image and grid')
             frame = self._prepare(img, grid)
             rep.empty_image = frame.empty
             rep.window_pixels, rep.cue_pixel = frame.window, frame.grid.resolution
@@ -273,7 +276,7 @@ class GpfTracker:
         rep.missed = len(self.tracks) - rep.seen
         t2 = time.perf_counter()
         imaged = frame is not None and not frame.empty
-        if imaged:
+        if frame is not None and imaged:
             rep.reseeded = self._reseed(xy, covs)
             self._templates(frame.windows)
             rep.outside = self._coverage(frame)
@@ -332,7 +335,7 @@ class GpfTracker:
         the same result as updating them one after the other."""
         if not tracks:
             return
-        if frame.windows is None:
+        if frame.windows is None or frame.background is None:   # both None on an image without data
             for tr in tracks:
                 self._miss(tr)
             return
@@ -366,8 +369,9 @@ class GpfTracker:
         for i, tr in enumerate(tracks):
             fused, w, mean, cov = posteriors[i]
             observed = observed_all[:, i]
-            match = float(self.cues.match(self.cues.distances2(observed[:, None], tr.template))[0])
-            distinct = float(self.cues.match(self.cues.distances2(frame.background[:, None], tr.template))[0])
+            template = cast(np.ndarray, tr.template)   # measured above where it was missing
+            match = float(self.cues.match(self.cues.distances2(observed[:, None], template))[0])
+            distinct = float(self.cues.match(self.cues.distances2(frame.background[:, None], template))[0])
             tr.match, tr.distinct, tr.last_weights = match, distinct, w
             tr.inverse_spread, tr.a = fused.inverse_spread, fused.a
             if not (distinct > lost.distinct and match < lost.ratio * distinct):
@@ -381,7 +385,7 @@ class GpfTracker:
     def _update_on_regions(self, xy: np.ndarray, sensor_pose: tuple[float, float, float] | None) -> np.ndarray:
         """The update of a filter on regions (:meth:`.filters.Ekf.update_on_regions`, the sonar at
         the origin looking along x if its pose is unknown); returns which regions were used."""
-        sensor = tuple(float(v) for v in (sensor_pose or (0.0, 0.0, 0.0)))
+        sensor = cast(tuple[float, float, float], tuple(float(v) for v in (sensor_pose or (0.0, 0.0, 0.0))))
         pairs = self.filter.update_on_regions(self.tracks, xy, sensor)
         used = np.zeros(len(xy), bool)
         for i, tr in enumerate(self.tracks):
@@ -410,7 +414,7 @@ class GpfTracker:
             return
         positions = np.array([tr.mean[:2] for tr in self.tracks])
         for i, tr in enumerate(self.tracks):
-            if not tr.seen or tr.observed is None:
+            if not tr.seen or tr.observed is None or tr.template is None:
                 continue
             others = np.delete(positions, i, axis=0)
             if template_may_update(tr.match, tr.mean[:2], others, self.config.template):
@@ -491,12 +495,13 @@ class GpfTracker:
         free = free[:room]
         if free.size == 0:
             return 0
-        templates = (np.zeros((0, free.size)) if frame is None
+        templates = (np.zeros((0, free.size)) if frame is None or frame.windows is None
                      else self.cues.values(frame.windows, frame.grid, xy[free], frame.window))
+        stamp = cast(float, self.stamp)   # births come after the frame's stamp is taken
         for j, i in enumerate(free):
             mean = np.array([xy[i, 0], xy[i, 1], 0.0, 0.0])
             tr = GpfTrack(track_id=self.next_id, mean=mean, cov=covs[i], template=templates[:, j],
-                          born=self.stamp, stamp=self.stamp, last_seen=self.stamp)
+                          born=stamp, stamp=stamp, last_seen=stamp)
             self.next_id += 1
             self.filter.restart(tr, self.config.particles, self.rng)
             tr.confirmed = tr.hits >= c.confirm_hits

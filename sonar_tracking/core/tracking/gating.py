@@ -27,7 +27,6 @@ import numpy as np
 from scipy.special import gammainc, gammaincinv
 
 from sonar_tracking.core.jit import kernel
-
 from sonar_tracking.core.tracking.errors import TrackingInputError
 
 __all__ = ['gate_threshold', 'gate_probability', 'candidate_pairs', 'candidate_counts', 'gate_boxes', 'Innovations',
@@ -196,7 +195,7 @@ def _inside_pairs(lo, hi, z, track, meas):
 @kernel
 def _in_box(z, i, lo, hi, t):
     """Measurement ``i`` lies in track ``t``'s box, edges included (compiled scalar)."""
-    for j in range(z.shape[1]):
+    for j in range(z.shape[1]):  # noqa: SIM110 - a compiled loop; numba has no all() of a generator
         if not (z[i, j] >= lo[t, j] and z[i, j] <= hi[t, j]):
             return False
     return True
@@ -369,7 +368,7 @@ class Innovations:
     buffer: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @staticmethod
-    def from_buffer(buffer: np.ndarray, d: int) -> 'Innovations':
+    def from_buffer(buffer: np.ndarray, d: int) -> Innovations:
         """The statistics as views of one array whose rows are ``nu, s_inv, w, d2, det`` (see ``buffer``)."""
         e = 2 * d + d * d
         return Innovations(nu=buffer[:d], s_inv=buffer[d:d + d * d].reshape((d, d) + buffer.shape[1:]),
@@ -379,7 +378,7 @@ class Innovations:
         """``N(z; H x_pred, S)`` for every mode and pair (the numerator of eq. 28)."""
         return gaussian_density(self.d2, self.det, self.nu.shape[0])
 
-    def select(self, keep: np.ndarray) -> 'Innovations':
+    def select(self, keep: np.ndarray) -> Innovations:
         """The statistics of the pairs ``keep`` (indices, or a ``(P,)`` bool mask)."""
         idx = keep.nonzero()[0] if keep.dtype == bool else keep
         if self.buffer is not None:            # one gather for all five

@@ -46,7 +46,9 @@ has stayed outside the windows of successive scans for ``track.outside_time`` se
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
@@ -273,7 +275,8 @@ class ImmIpdaTracker:
         if len(self._ids):
             # Overflow on absurd input shows as non-finite estimates, which _manage removes.
             with np.errstate(over='ignore', invalid='ignore', divide='ignore', under='ignore'):
-                pair_track, pair_meas = self._predict_update(t - self._t, z, R, rho, rep)
+                dt = t - cast(float, self._t)   # tracks exist only after a first scan
+                pair_track, pair_meas = self._predict_update(dt, z, R, rho, rep)
             rep.n_pairs = len(pair_track)
             with np.errstate(over='ignore', invalid='ignore'):
                 self._manage(rep, t, coverage)
@@ -350,8 +353,10 @@ class ImmIpdaTracker:
             for a, b in zip(bounds[:-1], bounds[1:]):
                 r_chunk = None if r is None else r[done:]
                 # Contiguous copies: the kernels then see the arrays of the one-chunk path (no second compilation).
-                part = [np.ascontiguousarray(v[..., a:b]) for v in (x_pred, P_pred, mu_pred, e_pred, track_side)]
-                res, pt, pm = self._update_chunk(*part, BoxSearch(lo[a:b], hi[a:b], z), z, meas_side, rho, r_chunk)
+                xp, Pp, mp, ep, ts = (np.ascontiguousarray(v[..., a:b])
+                                      for v in (x_pred, P_pred, mu_pred, e_pred, track_side))
+                res, pt, pm = self._update_chunk(xp, Pp, mp, ep, ts, BoxSearch(lo[a:b], hi[a:b], z), z, meas_side, rho,
+                                                 r_chunk)
                 done += len(pt)
                 self._x[..., a:b], self._P[..., a:b], self._mu[:, a:b] = res.x, res.P, res.mu
                 self._exist[a:b] = res.existence
@@ -469,7 +474,7 @@ class ImmIpdaTracker:
             return ids
         # Wrapped around the uint32 space: skip ids still in use.
         self._wrapped = True
-        out = []
+        out: list[int] = []
         live = set(self._ids.tolist())
         while len(out) < k:
             if self._next_id >= _ID_SPACE:
@@ -519,11 +524,12 @@ def _filled(shape, value: float) -> np.ndarray:
 def _run_view(first: str, count: int) -> np.dtype:
     """A dtype viewing ``count`` consecutive float64 fields of ``TRACK_DTYPE`` from ``first`` as one
     ``(count,)`` field ``v`` (checked against the record layout)."""
-    names = TRACK_DTYPE.names
+    names = TRACK_DTYPE.names or ()
+    fields: Mapping[str, tuple] = TRACK_DTYPE.fields or {}
     start = names.index(first)
-    offset = TRACK_DTYPE.fields[first][1]
+    offset = fields[first][1]
     for k, name in enumerate(names[start:start + count]):
-        if TRACK_DTYPE.fields[name] != (np.dtype('<f8'), offset + 8 * k):
+        if fields[name] != (np.dtype('<f8'), offset + 8 * k):
             raise AssertionError(f'TRACK_DTYPE fields from {first} are not {count} consecutive float64')
     return np.dtype({'names': ['v'], 'formats': [('<f8', (count,))], 'offsets': [offset],
                      'itemsize': TRACK_DTYPE.itemsize})

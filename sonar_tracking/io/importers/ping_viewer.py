@@ -3,9 +3,10 @@ from __future__ import annotations
 
 import re
 import struct
+from collections.abc import Iterator
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 

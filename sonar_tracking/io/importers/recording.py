@@ -9,9 +9,10 @@ cannot be decoded, a cut-off file) go to ``problems`` as ``(topic, stamp_ns, tex
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 

@@ -10,9 +10,9 @@ finds up to the first incomplete record, including those of an uncompressed chun
 from __future__ import annotations
 
 import struct
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 __all__ = ['Connection', 'Salvage', 'scan']
 

@@ -15,8 +15,9 @@ from __future__ import annotations
 import math
 import struct
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 import numpy as np
 

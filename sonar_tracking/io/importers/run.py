@@ -22,7 +22,6 @@ import numpy as np
 import sonar_tracking.msgs as ma
 from sonar_tracking.core.intensity import condition, gate_ranges
 from sonar_tracking.core.sector import SectorGeometry
-
 from sonar_tracking.io.importers.options import ImportOptions, ProjectedOptions
 from sonar_tracking.io.importers.recording import Frame, Item, Recording
 from sonar_tracking.io.importers.sweeps import SweepAssembler

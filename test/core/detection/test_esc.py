@@ -10,8 +10,13 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.core.detection import (ActiveDetector, DetectorConfig, ExtremumSeekingController, compandor,
-                                           sign_block)
+from sonar_tracking.core.detection import (
+    ActiveDetector,
+    DetectorConfig,
+    ExtremumSeekingController,
+    compandor,
+    sign_block,
+)
 from sonar_tracking.sim import SimConfig, Simulator
 
 RHO_D = 2.21e-5  # Scenario 1's desired density (§5.1)

@@ -168,7 +168,7 @@ def test_many_regions_at_once_equal_one_at_a_time():
     big = np.zeros((128, 128))
     big_img = np.ones((128, 128))
     singles = []
-    for k, (name, m) in enumerate(masks.items()):
+    for k, m in enumerate(masks.values()):
         r, c = divmod(k, 2)
         sl = (slice(64 * r, 64 * r + 64), slice(64 * c, 64 * c + 64))
         big[sl] = np.where(m, k + 1, 0)

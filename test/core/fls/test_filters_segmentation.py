@@ -8,8 +8,17 @@ import numpy as np
 import pytest
 
 from sonar_tracking.core.config import ConfigError
-from sonar_tracking.core.fls import (FilterConfig, ImageGrid, PolarSweepFilter, SegmentConfig, cells_per_pixel,
-                                     grow_regions, median_blur, threshold_components, trimmed_mean)
+from sonar_tracking.core.fls import (
+    FilterConfig,
+    ImageGrid,
+    PolarSweepFilter,
+    SegmentConfig,
+    cells_per_pixel,
+    grow_regions,
+    median_blur,
+    threshold_components,
+    trimmed_mean,
+)
 from sonar_tracking.core.fls.filters import background_level
 from sonar_tracking.core.sector import SectorGeometry
 
@@ -94,7 +103,7 @@ def test_only_this_and_the_previous_sector_are_painted():
     they were taken elsewhere, and their pixels belong to that time."""
     _, sectors = sweep()
     f = PolarSweepFilter(FilterConfig())
-    for k, (a, g) in enumerate(sectors):  # first pass at x = 0
+    for a, g in sectors:  # first pass at x = 0
         f.add(a, g, (0.0, 0.0, 0.0))
     poses = set()
     for k, (a, g) in enumerate(reversed(sectors[3:6])):  # back over them, 10 m on

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 from sonar_tracking.core.fls import FlsConfig, FlsInputError, FlsProcessor, region_features
-from sonar_tracking.studies.fls_segmentation import score_frames, simulate_frames
 from sonar_tracking.core.records import FEATURE_NAMES, REGION_DTYPE
 from sonar_tracking.core.timeline import TimeWentBack
 from sonar_tracking.sim import SimConfig, Simulator
+from sonar_tracking.studies.fls_segmentation import score_frames, simulate_frames
 
 
 def sectors(scenario='fls14', seed=0, n=None, **overrides):

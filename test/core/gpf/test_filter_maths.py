@@ -10,8 +10,16 @@ import pytest
 from sonar_tracking.core.gpf import fusion, fuzzy, sir
 from sonar_tracking.core.gpf.cues import CUE_SPECS, CueModel, window_pixels
 from sonar_tracking.core.gpf.ekf import polar_measurement
-from sonar_tracking.core.gpf.gaussian import (condition_velocity, floor_position, kalman_update, motion_matrices,
-                                              predict, propagate, sample_gaussian, weighted_moments)
+from sonar_tracking.core.gpf.gaussian import (
+    condition_velocity,
+    floor_position,
+    kalman_update,
+    motion_matrices,
+    predict,
+    propagate,
+    sample_gaussian,
+    weighted_moments,
+)
 from sonar_tracking.core.tracking import ConstantVelocity, white_noise_acceleration
 
 P = np.array([[0.5, 0.1, 0.02, 0.0], [0.1, 0.4, 0.0, 0.01], [0.02, 0.0, 0.09, 0.0], [0.0, 0.01, 0.0, 0.06]])

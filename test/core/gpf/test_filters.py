@@ -16,7 +16,7 @@ def track(mean=(10.0, 2.0, 0.5, 0.0), var=(0.25, 0.25, 0.04, 0.04)) -> GpfTrack:
 
 
 def test_methods_map_to_their_filters():
-    assert FILTERS == {'gpf': GaussianPF, 'sir': SirPF}
+    assert {'gpf': GaussianPF, 'sir': SirPF} == FILTERS
 
 
 def test_each_particle_filter_moves_weighs_and_keeps_what_it_should():

@@ -6,8 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.core.tracking import Coverage, ImmIpdaTracker, TrackerConfig, TrackingInputError
-from sonar_tracking.core.tracking import management
+from sonar_tracking.core.tracking import Coverage, ImmIpdaTracker, TrackerConfig, TrackingInputError, management
 from sonar_tracking.core.tracking import tracker as tracker_module
 from sonar_tracking.core.tracking.management import birth_measurements, duplicate_tracks, pair_budget
 

@@ -7,9 +7,14 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from sonar_tracking.core.tracking import (TrackingInputError, candidate_pairs, gate_probability, gate_threshold,
-                                          innovations)
-from sonar_tracking.core.tracking import gating
+from sonar_tracking.core.tracking import (
+    TrackingInputError,
+    candidate_pairs,
+    gate_probability,
+    gate_threshold,
+    gating,
+    innovations,
+)
 
 
 @pytest.mark.parametrize('dim', [1, 2, 3, 4])

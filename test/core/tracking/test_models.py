@@ -6,10 +6,17 @@ import math
 import numpy as np
 import pytest
 
+from sonar_tracking.core.tracking import (
+    ConstantTurn,
+    ConstantVelocity,
+    TrackingInputError,
+    mode_transition_matrix,
+    position_matrix,
+    predict_existence,
+    update_existence,
+    white_noise_acceleration,
+)
 from sonar_tracking.sim.motion import ScriptedTrajectory, Segment
-from sonar_tracking.core.tracking import (ConstantTurn, ConstantVelocity, TrackingInputError, mode_transition_matrix,
-                                          position_matrix, predict_existence, update_existence,
-                                          white_noise_acceleration)
 
 
 @pytest.mark.parametrize('ndim', [1, 2, 3])

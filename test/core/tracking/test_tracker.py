@@ -9,11 +9,17 @@ from scipy import stats
 
 from sonar_tracking.core.detection.conversion import convert_measurements
 from sonar_tracking.core.records import TRACK_DTYPE
+from sonar_tracking.core.timeline import TimeWentBack
+from sonar_tracking.core.tracking import (
+    ConstantVelocity,
+    ImmIpdaTracker,
+    Mode,
+    TrackerConfig,
+    TrackingInputError,
+    white_noise_acceleration,
+)
 from sonar_tracking.sim.motion import ScriptedTrajectory
 from sonar_tracking.sim.presets import HARBOUR_SONAR_XY, SCENARIO2_SEGMENTS
-from sonar_tracking.core.timeline import TimeWentBack
-from sonar_tracking.core.tracking import (ConstantVelocity, ImmIpdaTracker, Mode, TrackerConfig, TrackingInputError,
-                                          white_noise_acceleration)
 
 
 def config(**flat) -> TrackerConfig:
