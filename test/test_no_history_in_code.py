@@ -36,11 +36,11 @@ def prose(source: str) -> list[tuple[int, str]]:
     return out
 
 
-def narration(path: Path) -> list[str]:
+def narration(path: Path, root: Path = ROOT) -> list[str]:
     found = []
     for line, text in prose(path.read_text()):
         for m in NARRATION.finditer(text.replace('\n', ' ')):
-            found.append(f'{path.relative_to(ROOT)}:{line}: {m.group(0)!r}')
+            found.append(f'{path.relative_to(root)}:{line}: {m.group(0)!r}')
     return found
 
 
@@ -56,11 +56,6 @@ def test_the_guard_sees_narration_and_lets_links_pass(tmp_path):
     good = tmp_path / 'good.py'
     good.write_text('"""Why: see docs/experiments/2026-11-21-fls-gpf-study.md."""\n'
                     '# the date is read at run time\nimport datetime\nd = datetime.date.today()\n')
-    global ROOT
-    saved, ROOT = ROOT, tmp_path
-    try:
-        hits = narration(bad)
-        assert len(hits) == 5, hits
-        assert narration(good) == []
-    finally:
-        ROOT = saved
+    hits = narration(bad, tmp_path)
+    assert len(hits) == 5, hits
+    assert narration(good, tmp_path) == []
