@@ -9,10 +9,11 @@ thresholds below, the memory is taken from the heap and kept for the next step. 
 process keeps up to ``MALLOC_TRIM_THRESHOLD_`` of freed heap instead of returning it at once.
 
 glibc reads these variables when a process starts; a running process sets the same values with
-``mallopt`` (:func:`apply_in_process`, called where every process of the package starts: the
-nodes' and tools' ``prepare_process``, ``sonar_eval``). :func:`allocator_env` gives the
-environment for a child process that is not one of ours. A value already in the environment is
-kept (the user's choice wins), and ``SONAR_TRACKING_MALLOC=0`` switches the whole thing off.
+``mallopt`` (:func:`apply_in_process`, through :func:`prepare` where every process of the package
+starts: the nodes' and tools' ``prepare_process``, ``sonar_eval``, the kernel warm-up).
+:func:`allocator_env` gives the environment for a child process that is not one of ours. A value
+already in the environment is kept (the user's choice wins), and ``SONAR_TRACKING_MALLOC=0``
+switches the whole thing off.
 
 **Kernel caches.** numba checks a cached kernel (``sonar_tracking.core.jit``) against its own source
 file only, not against the kernels it calls from other files, so an edited callee would leave its
