@@ -29,7 +29,6 @@ __all__ = ['grid_to_map_info', 'map_info_to_grid', 'fls_image', 'fls_frame', 'MI
 MIN_RESOLUTION, MAX_RESOLUTION = 1e-3, 100.0
 
 
-
 def grid_to_map_info(grid: ImageGrid, stamp_ns: int, types: MessageTypes | None = None) -> Any:
     """The MapMetaData of an image grid, stamped like its image."""
     types = types or rclpy_types()

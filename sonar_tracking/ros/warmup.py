@@ -103,7 +103,6 @@ def gpf(make_tracker) -> float:
     return time.perf_counter() - started
 
 
-
 def main() -> int:
     """``python -m sonar_tracking.ros.warmup``: fill the kernel cache (default settings of each
     component), e.g. once after an install, before a demo or a test run."""

@@ -43,7 +43,6 @@ _IMAGE_DTYPES = {0: np.uint8, 1: np.int8, 2: np.uint16, 3: np.int16, 4: np.uint3
                  7: np.int64, 8: np.float32, 9: np.float64}
 
 
-
 def classify(typestore: Any, msgtype: str) -> str:
     """The role of a message type by its fields: 'scanline', 'echo', 'projected', 'odometry', 'pose'
     (a PoseStamped or PoseWithCovarianceStamped, imported only when named) or ''."""
@@ -61,7 +60,6 @@ def classify(typestore: Any, msgtype: str) -> str:
     if msgtype.endswith(('/PoseStamped', '/PoseWithCovarianceStamped')) and {'header', 'pose'} <= names:
         return 'pose'
     return ''
-
 
 
 class BagRecording(Recording):
