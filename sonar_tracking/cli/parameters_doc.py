@@ -63,7 +63,7 @@ def _cell(text: str) -> str:
 
 def node_table(node: Any) -> list[str]:
     """Markdown table rows of a node's own parameters, in declaration order."""
-    names = [n for n in node._parameters if n not in _ROS_OWN]  # declaration order (rclpy keeps a dict)
+    names = [n for n in node.get_parameters_by_prefix('') if n not in _ROS_OWN]   # in declaration order
     rows = ['| parameter | type | default | range | description |', '|---|---|---|---|---|']
     for name, d in zip(names, node.describe_parameters(names)):
         value = node.get_parameter(name).value
