@@ -6,6 +6,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from sonar_tracking.io import param_files
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
 from sonar_tracking.nodes.fls_features import FlsNodeConfig
 from sonar_tracking.nodes.gpf_tracker import GpfNodeConfig
@@ -39,10 +40,12 @@ def parameter_files():
 def test_parameter_file_is_valid(path):
     data = yaml.safe_load(path.read_text())
     assert isinstance(data, dict) and data, f'{path.name} is empty'
-    for node, section in data.items():
+    for key in data:
+        node = key.removeprefix('/**/')
+        assert key == f'/**/{node}', f'{path.name}: section {key!r} applies in one namespace only; key it /**/{node}'
         assert node in NODES, f'{path.name}: unknown node {node}'
         cls, build = NODES[node]
-        params = dict(section['ros__parameters'])
+        params = param_files.parameters_for(data, node, '/auv1')
         known = {s.name for s in cls.settings()}
         assert not set(params) - known, f'unknown parameters {sorted(set(params) - known)}'
         flat = build(dict(params)).flat()

@@ -27,17 +27,15 @@ PRESET_KEY = 'sonar_import'
 
 
 def load_preset(name: str) -> dict:
-    """The importer settings of a sensor preset (``config/sensors/NAME.yaml``, ``sonar_import:
+    """The importer settings of a sensor preset (``config/sensors/NAME.yaml``, section ``/**/sonar_import:
     ros__parameters:``, so the file is also a valid ROS parameter file for the nodes it configures)."""
-    import yaml
-
+    from sonar_tracking.io import param_files
     from sonar_tracking.resources import config_path
     path = Path(name) if name.endswith('.yaml') else config_path(f'sensors/{name}.yaml')
-    data = yaml.safe_load(path.read_text()) or {}
-    section = (data.get(PRESET_KEY) or {}).get('ros__parameters')
-    if not isinstance(section, dict):
-        raise ValueError(f'{path} has no {PRESET_KEY}: ros__parameters: section')
-    return dict(section)
+    section = param_files.parameters_for(param_files.load(path), PRESET_KEY)
+    if section is None:
+        raise ValueError(f'{path} has no /**/{PRESET_KEY}: ros__parameters: section')
+    return section
 
 
 def _stamp(ns: int) -> str:

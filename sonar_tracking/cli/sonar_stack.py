@@ -1,7 +1,9 @@
 """``sonar_stack``: run a whole pipeline as child processes from one YAML file (no launch files).
 
 The file names the nodes to start, each with an executable of this package, an optional
-parameter file (relative to the YAML file, or in the package's ``config/``), single parameters
+parameter file (absolute, relative to the YAML file, or ``package:NAME`` for a file of the package's
+``config/``; a relative file missing beside the stack is an error, not the package's file of that
+name; the stack says which file each node reads), single parameters
 and remappings; and what to do when a node exits: ``stop`` the stack (the default; the stack's
 exit status is 0 if that node exited cleanly, 1 otherwise), ``restart`` it (up to
 ``max_restarts`` times) or ``ignore`` it::
@@ -12,13 +14,13 @@ exit status is 0 if that node exited cleanly, 1 otherwise), ``restart`` it (up t
     nodes:
       seaking_sim:
         executable: seaking_sim
-        params_file: sim_harbour.yaml
+        params_file: package:sim_harbour.yaml   # a file of the package's config/
         parameters: {rate: 1.0}
         remappings: {sonar/fan: fan}
         on_exit: stop
         wait_for: {sonar/sector: 1, detections: 1}   # start once these have that many subscribers
       active_detector:
-        params_file: active_detector.yaml     # executable defaults to the node's key
+        params_file: detector.yaml            # beside this file; executable defaults to the node's key
         namespace: left                       # optional: this node in /harbour/left
     record:
       topics: [sonar/sector, sonar/sector_info, detections, tracks]
@@ -34,12 +36,12 @@ likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`
 
 Namespaces: ``namespace:`` at the top of the file puts the whole stack there, and a node's own
 ``namespace:`` puts that node there (a relative one under the stack's, an absolute one as it is).
-``--namespace NS`` moves everything, file namespaces included, under ``NS``; so two stacks run
-side by side in ``/a`` and ``/b``. Relative names in ``wait_for`` resolve in the node's namespace
+``--namespace NS`` (or ``--ros-args -r __ns:=NS``, as with ``ros2 run``) moves everything, file
+namespaces included, under ``NS``; so two stacks run side by side in ``/a`` and ``/b``. Relative names in ``wait_for`` resolve in the node's namespace
 and relative ``record`` topics in the stack's, as ROS resolves the nodes' own relative topic names;
-absolute names stay. A namespaced node still gets its section of the parameter file: ROS reads a
-section ``seaking_sim:`` only for ``/seaking_sim``, so the stack hands the child a copy of the file
-with the top-level node keys moved into its namespace (``/a/seaking_sim:``; ``/**`` keys as they are).
+absolute names stay. Parameter files key their sections ``/**/NODE_NAME:`` so that they apply in any
+namespace, as the package's files do; a namespaced node whose file keys its section by the bare name
+(which ROS applies in the root namespace only) is refused before anything starts.
 
 A stack is named by a file (``--config path/to/stack.yaml``) or by a name looked up in the
 package's ``config/`` wherever the package is installed (``sonar_stack harbour`` finds
@@ -59,7 +61,6 @@ import shlex
 import signal
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -69,7 +70,7 @@ from pathlib import Path
 import yaml
 
 __all__ = ['main', 'StackConfig', 'NodeSpec', 'StackError', 'load_stack', 'find_stack', 'shipped_stacks',
-           'apply_settings', 'move', 'command', 'resolve_name', 'namespaced_params']
+           'apply_settings', 'move', 'command', 'resolve_name', 'check_params_files', 'PACKAGE_PREFIX']
 
 _ON_EXIT = ('stop', 'restart', 'ignore')
 
@@ -111,17 +112,34 @@ def _entry_points() -> dict[str, str]:
     return {ep.name: ep.value.split(':')[0] for ep in eps if ep.value.startswith('sonar_tracking.')}
 
 
+#: ``params_file: package:NAME`` names a file of the package's ``config/`` (wherever it is installed).
+PACKAGE_PREFIX = 'package:'
+
+
 def _resolve(path: str, base: Path) -> Path:
+    """A node's parameter file: absolute, relative to the stack file's folder, or ``package:NAME``. A
+    relative file that is not beside the stack is an error, never the package's file of the same name
+    (a copied stack must not run the package's preset without saying so)."""
+    if path.startswith(PACKAGE_PREFIX):
+        from sonar_tracking.resources import config_path
+        name = path[len(PACKAGE_PREFIX):]
+        try:
+            return config_path(name)
+        except FileNotFoundError:
+            raise StackError(f'parameter file {path}: the package config has no {name}') from None
     p = Path(path)
-    if p.is_absolute():
-        return p
-    if (base / p).exists():
-        return base / p
-    from sonar_tracking.resources import config_path
-    try:
-        return config_path(str(p))
-    except FileNotFoundError:
-        raise StackError(f'parameter file {path} not found next to the stack file nor in the package config') from None
+    found = p if p.is_absolute() else base / p
+    if found.is_file():
+        return found
+    hint = ''
+    if not p.is_absolute():
+        from sonar_tracking.resources import config_path
+        try:
+            hint = (f"; the package has one of that name ({config_path(path)}): write 'params_file: "
+                    f"{PACKAGE_PREFIX}{path}' to use it")
+        except FileNotFoundError:
+            pass
+    raise StackError(f'parameter file {found} not found' + hint)
 
 
 _NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
@@ -259,43 +277,32 @@ def move(config: StackConfig, namespace: str) -> None:
         spec.namespace = _join(outer, spec.namespace.lstrip('/'))
 
 
-_TOP_KEY = re.compile(r'''^(?P<q>['"]?)(?P<key>[^\s'"#\-][^'"#:]*?)(?P=q)(?P<rest>\s*:(\s.*)?)$''')
+def check_params_files(config: StackConfig) -> None:
+    """StackError if a node runs outside the root namespace with a parameter file whose section for it
+    is keyed by its bare name (``seaking_sim:``), which ROS applies in the root namespace only: the
+    node would run on its defaults. Such sections must be keyed ``/**/seaking_sim:``."""
+    from sonar_tracking.io import param_files
+    for spec in config.nodes:
+        if spec.params_file is None or spec.namespace == '/':
+            continue
+        try:
+            stale = param_files.root_only_sections(param_files.load(spec.params_file), spec.executable)
+        except param_files.ParamFileError as exc:
+            raise StackError(str(exc)) from None
+        if stale:
+            raise StackError(f'{spec.params_file}: section {stale[0].lstrip("/")}: applies in the root namespace only, '
+                             f'but {spec.name} runs in {spec.namespace} and would start on its defaults; key the '
+                             f'section /**/{spec.executable}: so it applies in any namespace')
 
 
-def namespaced_params(path: Path, namespace: str, out_dir: Path) -> Path:
-    """A copy of a parameter file whose top-level node keys are moved into ``namespace``.
-
-    ``seaking_sim:`` and ``/seaking_sim:`` become ``/a/seaking_sim:``; wildcard keys (``/**``) stay.
-    The copy is made line by line, so every value keeps the text (and type) it had.
-    """
-    lines = []
-    for line in path.read_text().splitlines(keepends=True):
-        m = _TOP_KEY.match(line.rstrip('\n'))
-        if m and m['key'] not in ('---', '...') and '*' not in m['key']:
-            key = _join(namespace, m['key'].strip().lstrip('/'))
-            line = f"{m['q']}{key}{m['q']}{m['rest']}\n"
-        lines.append(line)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    out = out_dir / f'{namespace.strip("/").replace("/", "_")}__{path.name}'
-    out.write_text(''.join(lines))
-    return out
-
-
-def command(spec: NodeSpec, params_dir: Path | None = None) -> list[str]:
-    """The child's command line: ``python -m <module> [args] --ros-args ...``.
-
-    A node outside the root namespace gets its parameter file moved into its namespace
-    (:func:`namespaced_params`), written to ``params_dir``.
-    """
+def command(spec: NodeSpec) -> list[str]:
+    """The child's command line: ``python -m <module> [args] --ros-args ...``."""
     module = _entry_points()[spec.executable]
     cmd = [sys.executable, '-m', module, *spec.extra_args, '--ros-args']
     if spec.namespace != '/':
         cmd += ['-r', f'__ns:={spec.namespace}']
     if spec.params_file:
-        path = spec.params_file
-        if spec.namespace != '/' and params_dir is not None:
-            path = namespaced_params(path, spec.namespace, params_dir)
-        cmd += ['--params-file', str(path)]
+        cmd += ['--params-file', str(spec.params_file)]
     for key, value in spec.parameters.items():
         cmd += ['-p', f'{key}:={json.dumps(value)}']
     for src, dst in spec.remappings.items():
@@ -306,9 +313,8 @@ def command(spec: NodeSpec, params_dir: Path | None = None) -> list[str]:
 class Child:
     """A running node with its output relay."""
 
-    def __init__(self, spec: NodeSpec, out_lock: threading.Lock, params_dir: Path | None = None) -> None:
+    def __init__(self, spec: NodeSpec, out_lock: threading.Lock) -> None:
         self.spec = spec
-        self.params_dir = params_dir
         self.restarts = 0
         self.out_lock = out_lock
         self.proc: subprocess.Popen | None = None
@@ -316,7 +322,7 @@ class Child:
 
     def start(self) -> None:
         env = dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1', PYTHONUNBUFFERED='1')
-        self.proc = subprocess.Popen(command(self.spec, self.params_dir), stdout=subprocess.PIPE,
+        self.proc = subprocess.Popen(command(self.spec), stdout=subprocess.PIPE,
                                      stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True, env=env)
         threading.Thread(target=self._relay, args=(self.proc,), daemon=True).start()
 
@@ -392,11 +398,10 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0,
         specs.insert(0, NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore',
                                  extra_args=shlex.split(view), namespace=config.namespace))
         waits['sonar_view'] = {}
-    params_dir = tempfile.TemporaryDirectory(prefix='sonar_stack_')
-    try:
-        return _run(config, specs, waits, Path(params_dir.name), grace, say, lock, stop)
-    finally:
-        params_dir.cleanup()
+    for spec in specs:
+        if spec.params_file is not None:
+            say(f'{spec.name} reads parameters from {spec.params_file}')
+    return _run(config, specs, waits, grace, say, lock, stop)
 
 
 def _late_topics(topics: list[str], namespace: str) -> list[str]:
@@ -408,8 +413,8 @@ def _late_topics(topics: list[str], namespace: str) -> list[str]:
             and t[len(prefix):] in PACKAGE_TOPICS]
 
 
-def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, params_dir: Path, grace: float,
-         say, lock: threading.Lock, stop: threading.Event) -> int:
+def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, grace: float, say, lock: threading.Lock,
+         stop: threading.Event) -> int:
     children = []
     graph = _GraphProbe() if any(waits.values()) else None
     try:
@@ -421,7 +426,7 @@ def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, params_dir: Pa
                     time.sleep(0.05)
                 if stop.is_set():
                     break
-            children.append(Child(spec, lock, params_dir))
+            children.append(Child(spec, lock))
             say(f'started {spec.name} (pid {children[-1].proc.pid})')
     finally:
         if graph is not None:
@@ -479,7 +484,16 @@ def main(argv: list[str] | None = None) -> int:
                         help='also run sonar_view, the browser view (ARGS: its options, quoted)')
     parser.add_argument('--dry-run', action='store_true', help="print the children's command lines and exit")
     parser.add_argument('--list', action='store_true', help='list the stack files shipped with the package')
+    argv = sys.argv[1:] if argv is None else list(argv)
+    ros_args: list[str] = []
+    if '--ros-args' in argv:
+        i = argv.index('--ros-args')
+        argv, ros_args = argv[:i], argv[i + 1:]
     args = parser.parse_args(argv)
+    try:
+        namespace = _namespace_from(args.namespace, ros_args)
+    except StackError as exc:
+        parser.error(str(exc))
     if args.list:
         for p in shipped_stacks():
             print(p)
@@ -490,8 +504,9 @@ def main(argv: list[str] | None = None) -> int:
         path = find_stack(args.stack or args.config)
         config = load_stack(path)
         apply_settings(config, args.set)
-        if args.namespace is not None:
-            move(config, args.namespace)
+        if namespace is not None:
+            move(config, namespace)
+        check_params_files(config)
     except StackError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
@@ -499,8 +514,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f'# {path}' + (f' in {config.namespace}' if config.namespace != '/' else ''))
         for spec in config.nodes:
             print(shlex.join(command(spec)))
-            if spec.params_file and spec.namespace != '/':
-                print(f'#   (run with a copy of {spec.params_file.name} whose node keys are in {spec.namespace})')
         return 0
     if args.record is not None and args.record.exists():
         print(f'error: {args.record} exists already', file=sys.stderr)
@@ -510,6 +523,32 @@ def main(argv: list[str] | None = None) -> int:
         print(f'error: {MISSING}', file=sys.stderr)
         return 2
     return run(config, args.record, view=args.view)
+
+
+def _namespace_from(namespace: str | None, ros_args: list[str]) -> str | None:
+    """The stack's namespace from ``--namespace`` and ``--ros-args -r __ns:=NS`` (the ``ros2 run``
+    habit); StackError for any other ROS argument (parameters go through ``--set``) or two namespaces."""
+    args = [a for a in ros_args if a != '--']
+    remaps = []
+    i = 0
+    while i < len(args):
+        if args[i] in ('-r', '--remap') and i + 1 < len(args):
+            remaps.append(args[i + 1])
+            i += 2
+        elif args[i] in ('--ros-args',):
+            i += 1
+        else:
+            raise StackError(f'--ros-args: sonar_stack takes only -r __ns:=NS there, not {args[i]!r} (parameters: '
+                             '--set NODE.PARAM=VALUE; remappings: the stack file)')
+    for remap in remaps:
+        key, sep, value = remap.partition(':=')
+        if key != '__ns' or not sep or not value:
+            raise StackError(f'--ros-args -r {remap}: sonar_stack takes only -r __ns:=NS (node remappings go in '
+                             'the stack file)')
+        if namespace is not None and namespace.rstrip('/') != value.rstrip('/'):
+            raise StackError(f'two namespaces: --namespace {namespace} and -r __ns:={value}')
+        namespace = value
+    return namespace
 
 
 def _has_view() -> bool:

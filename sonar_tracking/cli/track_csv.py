@@ -30,7 +30,7 @@ import sys
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, BinaryIO, TextIO
+from typing import BinaryIO, TextIO
 
 import numpy as np
 
@@ -67,33 +67,20 @@ class Scan:
     last_line: int = 0
 
 
-def _flatten(mapping: dict, prefix: str = '') -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in mapping.items():
-        name = f'{prefix}{key}'
-        if isinstance(value, dict):
-            out.update(_flatten(value, name + '.'))
-        else:
-            out[name] = value
-    return out
-
-
 def load_params(path: Path) -> TrackerConfig:
     """Tracker settings from a YAML file (ROS parameter file or plain mapping); InputError if unusable."""
-    import yaml
+    from sonar_tracking.io import param_files
     try:
-        data = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise InputError(f'cannot read parameters from {path}: {exc}') from None
-    if not isinstance(data, dict):
-        raise InputError(f'{path}: expected a mapping of parameters, got {type(data).__name__}')
-    sections = {k: v for k, v in data.items() if isinstance(v, dict) and 'ros__parameters' in v}
-    if sections:
-        section = sections.get(NODE_NAME) or sections.get('/**')
-        if section is None:
-            raise InputError(f'{path}: no {NODE_NAME} (or /**) section among {sorted(sections)}')
-        data = section['ros__parameters'] or {}
-    flat = _flatten(data)
+        data = param_files.load(path)
+    except param_files.ParamFileError as exc:
+        raise InputError(str(exc)) from None
+    patterns = [pattern for pattern, _ in param_files.sections(data)]
+    if patterns:
+        flat = param_files.parameters_for(data, NODE_NAME)
+        if flat is None:
+            raise InputError(f'{path}: no section applies to {NODE_NAME} among {patterns}')
+    else:
+        flat = param_files.flatten(data)
     known = {s.name for s in TrackerConfig.settings()}
     node_only = _node_only_settings()
     unknown = sorted(set(flat) - known - node_only)

@@ -24,7 +24,8 @@ from rclpy.parameter import Parameter
 
 from sonar_tracking.core.config import Config, ConfigError, Setting
 
-__all__ = ['ConfigParameters', 'descriptor_for', 'start_value', 'declare_choice']
+__all__ = ['ConfigParameters', 'descriptor_for', 'start_value', 'declare_choice', 'unknown_overrides',
+           'warn_unknown_overrides']
 
 _TYPES = {bool: ParameterType.PARAMETER_BOOL, int: ParameterType.PARAMETER_INTEGER,
           float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING}
@@ -75,6 +76,22 @@ def start_value(node: Node, s: Setting, default: Any) -> Any:
     return _ros_value(given)
 
 
+def unknown_overrides(node: Node) -> list[str]:
+    """Names given to ``node`` at start-up (``-p``, the sections of its parameter files that apply to
+    it) that it has not declared: a misspelt name, or one of another node."""
+    overrides = getattr(node, '_parameter_overrides', {})  # rclpy has no public accessor for these
+    return sorted(n for n in overrides if not node.has_parameter(n) and not n.startswith('qos_overrides.'))
+
+
+def warn_unknown_overrides(node: Node) -> None:
+    """Log the start-up names ``node`` does not know (:func:`unknown_overrides`), once."""
+    unknown = unknown_overrides(node)
+    if unknown:
+        node.get_logger().warning(f'unknown parameter(s) for {node.get_fully_qualified_name()}, ignored: '
+                                  f'{", ".join(unknown)} (misspelt, or meant for another node? '
+                                  f'`ros2 param list {node.get_fully_qualified_name()}` lists its names)')
+
+
 def declare_choice(node: Node, s: Setting, default: str, choices: tuple[str, ...]) -> str:
     """Declare setting ``s`` read before the others because it decides their defaults (a scenario, a
     preset): its start-up value if it is one of ``choices``, else ``default`` with the reason logged."""
@@ -119,6 +136,7 @@ class ConfigParameters:
                                        ignore_override=True)
         node.add_pre_set_parameters_callback(self._pre_set)
         node.add_on_set_parameters_callback(self._on_set)
+        warn_unknown_overrides(node)
 
     def _pre_set(self, params: list[Parameter]) -> list[Parameter]:
         out = []

@@ -84,8 +84,8 @@ def core_tracks(bag: Path) -> list[tuple[int, np.ndarray]]:
 
 
 def _tracker_params() -> dict:
-    import yaml
-    return yaml.safe_load((CONFIG / 'imm_ipda.yaml').read_text())['imm_ipda_tracker']['ros__parameters']
+    from sonar_tracking.io import param_files
+    return param_files.parameters_for(param_files.load(CONFIG / 'imm_ipda.yaml'), 'imm_ipda_tracker')
 
 
 def node_tracks(ros, launch, bag: Path, repeat: int = 1) -> list[tuple[int, np.ndarray]]:

@@ -11,6 +11,7 @@ import pytest
 import yaml
 
 from sonar_tracking.cli.sonar_import import load_preset
+from sonar_tracking.io import param_files
 from sonar_tracking.io.importers import ImportOptions
 from sonar_tracking.nodes.active_detector import DetectorNodeConfig
 from sonar_tracking.nodes.fls_features import FlsNodeConfig
@@ -30,14 +31,14 @@ def test_the_four_sensor_families_have_presets():
 @pytest.mark.parametrize('path', PRESETS, ids=lambda p: p.stem)
 def test_preset_names_real_settings(path):
     data = yaml.safe_load(path.read_text())
-    assert set(data) - {'sonar_import'} <= set(NODES), f'unknown node sections {set(data) - set(NODES)}'
+    nodes = {key.removeprefix('/**/') for key in data}
+    assert set(data) == {f'/**/{node}' for node in nodes}, 'every section must apply under any namespace'
+    assert nodes - {'sonar_import'} <= set(NODES), f'unknown node sections {nodes - set(NODES)}'
     options = ImportOptions.from_flat(load_preset(str(path)))
     assert options.flat()  # constructing validated every importer value
-    for node, section in data.items():
-        if node == 'sonar_import':
-            continue
+    for node in sorted(nodes - {'sonar_import'}):
         cls = NODES[node]
-        params = dict(section['ros__parameters'])
+        params = param_files.parameters_for(data, node, '/auv1')
         known = {s.name for s in cls.settings()}
         assert not set(params) - known, f'{node}: unknown parameters {sorted(set(params) - known)}'
         flat = cls.from_flat(params).flat()

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sonar_tracking.cli.sonar_stack import StackError, command, load_stack
+from sonar_tracking.cli.sonar_stack import StackError, command, load_stack, move
 
 pytestmark = pytest.mark.ros
 
@@ -67,7 +67,7 @@ nodes:
   seaking_sim:
     parameters: {scenario: scenario1, rate: 4.0, duration: 3.0, shutdown_when_done: true}
   active_detector:
-    params_file: active_detector.yaml
+    params_file: package:active_detector.yaml
     parameters: {esc.enabled: false}
 ''')
     proc = start(path)
@@ -147,7 +147,7 @@ def test_command_line_of_a_child(tmp_path):
     cfg = load_stack(write(tmp_path, '''
 nodes:
   active_detector:
-    params_file: active_detector.yaml
+    params_file: package:active_detector.yaml
     parameters: {esc.density_source: best_track, sonar_pose: [1.0, 2.0, 0.0]}
     remappings: {/detections: /harbour/detections}
 '''))
@@ -250,19 +250,69 @@ nodes:
         load_stack(write(tmp_path, 'namespaces: a\nnodes: {seaking_sim: {}}'))
 
 
-def test_a_namespaced_node_gets_its_parameter_file_section(tmp_path):
-    from sonar_tracking.cli.sonar_stack import namespaced_params
-    src = tmp_path / 'p.yaml'
-    src.write_text('# comment: keep\nseaking_sim:\n  ros__parameters:\n    seed: 3\n    eps: 1e-5\n'
-                   '"/active_detector":   # quoted\n  ros__parameters: {x: 1}\n/**:\n  ros__parameters:\n    y: 2\n')
-    out = namespaced_params(src, '/a/b', tmp_path / 'out')
-    assert out.read_text() == ('# comment: keep\n/a/b/seaking_sim:\n  ros__parameters:\n    seed: 3\n    eps: 1e-5\n'
-                               '"/a/b/active_detector":   # quoted\n  ros__parameters: {x: 1}\n/**:\n'
-                               '  ros__parameters:\n    y: 2\n')
-    cfg = load_stack(write(tmp_path, 'nodes: {seaking_sim: {params_file: sim_harbour.yaml, namespace: a}}'))
-    cmd = command(cfg.nodes[0], tmp_path / 'params')
-    moved = Path(cmd[cmd.index('--params-file') + 1])
-    assert moved.parent == tmp_path / 'params' and moved.read_text().count('\n/a/seaking_sim:\n') == 1
+def test_a_namespaced_node_reads_the_parameter_file_as_it_is(tmp_path):
+    """The package's files key sections /**/NODE, so a namespaced node is handed the file itself."""
+    from sonar_tracking.cli.sonar_stack import check_params_files
+    from sonar_tracking.resources import config_path
+    cfg = load_stack(write(tmp_path, 'nodes: {seaking_sim: {params_file: package:sim_harbour.yaml, namespace: a}}'))
+    check_params_files(cfg)
+    cmd = command(cfg.nodes[0])
+    assert cmd[cmd.index('--params-file') + 1] == str(config_path('sim_harbour.yaml'))
+
+
+@pytest.mark.parametrize('key', ['seaking_sim', '/seaking_sim', '"/seaking_sim"'])
+def test_a_section_keyed_for_the_root_namespace_only_is_refused_for_a_namespaced_node(tmp_path, key):
+    from sonar_tracking.cli.sonar_stack import check_params_files
+    (tmp_path / 'p.yaml').write_text(f'{key}:\n  ros__parameters:\n    seed: 3\n')
+    root = load_stack(write(tmp_path, 'nodes: {seaking_sim: {params_file: p.yaml}}'))
+    check_params_files(root)   # in the root namespace the section applies
+    for ns in ('a', None):
+        cfg = load_stack(write(tmp_path, 'nodes: {seaking_sim: {params_file: p.yaml' +
+                               (f', namespace: {ns}' if ns else '') + '}}'))
+        if ns is None:
+            move(cfg, '/auv1')
+        with pytest.raises(StackError, match=r'root namespace only.*/\*\*/seaking_sim'):
+            check_params_files(cfg)
+    (tmp_path / 'p.yaml').write_text('/**/seaking_sim:\n  ros__parameters:\n    seed: 3\n')
+    check_params_files(cfg)
+
+
+def test_a_relative_parameter_file_missing_beside_the_stack_is_an_error_not_the_package_file(tmp_path, capsys):
+    """A copied stack without its preset must not run the package's preset silently; ``package:NAME``
+    asks for it, a file beside the stack is used, and --dry-run shows which file each node reads."""
+    from sonar_tracking.cli.sonar_stack import main
+    from sonar_tracking.resources import config_path
+    stack = write(tmp_path, 'nodes: {imm_ipda_tracker: {params_file: imm_ipda.yaml}}')
+    with pytest.raises(StackError, match=r'imm_ipda.yaml not found.*package:imm_ipda.yaml'):
+        load_stack(stack)
+    assert main(['--config', str(stack), '--dry-run']) == 2
+    assert 'package:imm_ipda.yaml' in capsys.readouterr().err
+    package = load_stack(write(tmp_path, 'nodes: {imm_ipda_tracker: {params_file: package:imm_ipda.yaml}}'))
+    assert package.nodes[0].params_file == config_path('imm_ipda.yaml')
+    (tmp_path / 'imm_ipda.yaml').write_text('/**/imm_ipda_tracker:\n  ros__parameters:\n'
+                                            '    detection.probability: 0.7\n')
+    beside = load_stack(write(tmp_path, 'nodes: {imm_ipda_tracker: {params_file: imm_ipda.yaml}}'))
+    assert beside.nodes[0].params_file == tmp_path / 'imm_ipda.yaml'
+    assert main(['--config', str(tmp_path / 'stack.yaml'), '--dry-run']) == 0
+    assert f'--params-file {tmp_path / "imm_ipda.yaml"}' in capsys.readouterr().out
+    with pytest.raises(StackError, match='package config has no nowhere.yaml'):
+        load_stack(write(tmp_path, 'nodes: {imm_ipda_tracker: {params_file: package:nowhere.yaml}}'))
+
+
+def test_ros_args_namespace_is_the_stack_namespace(capsys):
+    """``sonar_stack harbour --ros-args -r __ns:=/auv1``, the ``ros2 run`` habit, is ``--namespace /auv1``."""
+    from sonar_tracking.cli.sonar_stack import main
+    assert main(['harbour', '--dry-run', '--ros-args', '-r', '__ns:=/auv1']) == 0
+    lines = [line for line in capsys.readouterr().out.splitlines() if not line.startswith('#')]
+    assert len(lines) == 3 and all('__ns:=/auv1' in line for line in lines), lines
+    assert main(['harbour', '--dry-run', '--namespace', '/auv1', '--ros-args', '--remap', '__ns:=/auv1/']) == 0
+    capsys.readouterr()
+    for bad, match in ((['--ros-args', '-p', 'seed:=3'], 'only -r __ns:=NS'),
+                       (['--ros-args', '-r', 'tracks:=t'], 'only -r __ns:=NS'),
+                       (['--namespace', '/a', '--ros-args', '-r', '__ns:=/b'], 'two namespaces')):
+        with pytest.raises(SystemExit) as exc:
+            main(['harbour', '--dry-run', *bad])
+        assert exc.value.code == 2 and match in capsys.readouterr().err
 
 
 def values(parameter_values) -> list:

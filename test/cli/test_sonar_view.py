@@ -317,12 +317,12 @@ MAP = (0, 40, 960, 960)  # the map view in a 1600 x 1000 page
 STACK = '''
 on_exit: stop
 nodes:
-  imm_ipda_tracker: {params_file: imm_ipda.yaml}
+  imm_ipda_tracker: {params_file: package:imm_ipda.yaml}
   active_detector:
-    params_file: active_detector.yaml
+    params_file: package:active_detector.yaml
     parameters: {esc.density_source: best_track, esc.desired_clutter_density: 7.52e-5}
   seaking_sim:
-    params_file: sim_harbour.yaml
+    params_file: package:sim_harbour.yaml
     parameters: {rate: 4.0, duration: %d.0, wait_for_subscribers: 1}
     wait_for: {/sonar/sector: 1, /sonar/sector_info: 1, /detections: 1}
 '''

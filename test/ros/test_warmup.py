@@ -33,7 +33,7 @@ def check(before):
 '''
 
 _HARBOUR = _SIGNATURES + '''
-import yaml
+from sonar_tracking.io import param_files
 from sonar_tracking.ros import warmup
 from sonar_tracking.core.detection import ActiveDetector, best_track_focus
 from sonar_tracking.studies.esc_study import StudyConfig, run_once
@@ -47,7 +47,7 @@ from sonar_tracking.resources import config_path
 
 
 def params(name, node):
-    return yaml.safe_load(open(config_path(name)))[node]['ros__parameters']
+    return param_files.parameters_for(param_files.load(config_path(name)), node)
 
 
 trk_cfg = TrackerNodeConfig.from_flat(params('imm_ipda.yaml', 'imm_ipda_tracker'))
