@@ -155,7 +155,11 @@ class ConfigParameters:
             if self.check is not None:
                 self.check(new)
         except ConfigError as exc:
-            return SetParametersResult(successful=False, reason=str(exc))
+            # The reason starts with what was set: a rule between settings may name another one first.
+            given = ', '.join(f'{n} = {v!r}' for n, v in changes.items())
+            text = str(exc)
+            reason = text if text.startswith(given) else f'{given} refused: {text}'
+            return SetParametersResult(successful=False, reason=reason)
         old, self.config = self.config, new
         if self.on_change is not None and new != old:
             self.on_change(old, new)

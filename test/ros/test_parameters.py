@@ -78,3 +78,27 @@ def test_a_refusal_names_the_setting_once(inproc):
     r = node.set_parameters([Parameter('threshold.initial', value=50.0)])[0]
     assert not r.successful and r.reason.startswith('threshold.initial = 50') and 'threshold.threshold' not in r.reason
     assert node.get_parameter('threshold.initial').value == 3.0
+
+
+@pytest.mark.parametrize('node_path, name, value, other', [
+    ('sonar_tracking.nodes.active_detector:ActiveDetectorNode', 'threshold.minimum', 5.0, 'threshold.initial'),
+    ('sonar_tracking.nodes.active_detector:ActiveDetectorNode', 'threshold.maximum', 1.0, 'threshold.initial'),
+    ('sonar_tracking.nodes.imm_ipda_tracker:ImmIpdaTrackerNode', 'existence.terminate', 0.6, 'initial'),
+])
+def test_a_cross_parameter_refusal_names_the_parameter_that_was_set(ros, inproc, node_path, name, value, other):
+    """Through the service ``ros2 param set`` calls: the reason starts with the name and value set,
+    even when the rule between settings is written from another setting's side."""
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+    node = inproc(node_class(node_path))
+    before = node.get_parameter(name).value
+    setc = ros.node.create_client(SetParameters, f'/{node.get_name()}/set_parameters')
+    try:
+        assert setc.wait_for_service(timeout_sec=20.0)
+        result = ros.call(setc, SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()]))
+    finally:
+        ros.node.destroy_client(setc)
+    reason = result.results[0].reason
+    assert not result.results[0].successful
+    assert reason.startswith(f'{name} = {value!r} '), reason
+    assert other in reason and node.get_parameter(name).value == before

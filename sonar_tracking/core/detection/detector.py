@@ -95,8 +95,8 @@ class ThresholdConfig(Config):
 
     def validate(self) -> None:
         if not self.minimum <= self.initial <= self.maximum:
-            raise ConfigError(f'threshold.initial = {self.initial} must lie in [threshold.minimum, '
-                              f'threshold.maximum] = [{self.minimum}, {self.maximum}]')
+            raise ConfigError('needs threshold.minimum <= threshold.initial <= threshold.maximum, not '
+                              f'{self.minimum} <= {self.initial} <= {self.maximum}')
 
 
 @dataclass(frozen=True)
