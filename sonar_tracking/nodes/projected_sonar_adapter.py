@@ -7,30 +7,44 @@ as ``sonar_import`` (:func:`sonar_tracking.io.importers.projected_to_sector`: be
 increasing REP-103 bearing and resampled onto an even grid, the message's z-forward frame
 converted) and the same intensity handling (:func:`~sonar_tracking.io.importers.condition_sector`).
 
-``marine_acoustic_msgs`` is not among the ROS wheels; where it is not importable the node still
-starts, says so and how to build it, and reports it in ``diagnostics``. Bad messages (sizes that
-disagree, an unknown dtype, a late stamp) are dropped with a logged reason.
+``marine_acoustic_msgs`` is not among the ROS wheels. Where it is not importable the node has no
+possible input: it says so and how to build it, and exits with status :data:`EXIT_NO_INTERFACES`.
+With ``wait_for_interfaces: true`` it stays up instead, reports ``waiting for marine_acoustic_msgs``
+in ``diagnostics`` and tries the import again every :data:`RETRY_PERIOD` seconds, so a package
+built meanwhile into a prefix already on ``PYTHONPATH`` (a sourced workspace) is picked up. Bad
+messages (sizes that disagree, an unknown dtype, a late stamp) are dropped with a logged reason.
 """
 from __future__ import annotations
 
+import importlib
 from dataclasses import dataclass
 from typing import Any
 
 from sensor_msgs.msg import Image, LaserScan
 
 import sonar_tracking.msgs as ma
+from sonar_tracking.core.config import setting
 from sonar_tracking.core.sector import GeometryError
 from sonar_tracking.io.importers import ProjectedOptions, condition_sector, projected_to_sector
 from sonar_tracking.ros import InputConfig, SonarNode, output_profile, run_node
 
-__all__ = ['AdapterConfig', 'ProjectedSonarAdapter', 'convert', 'main']
+__all__ = ['AdapterConfig', 'ProjectedSonarAdapter', 'convert', 'main', 'EXIT_NO_INTERFACES']
 
 BUILD_HINT = 'python -m sonar_tracking.cli.build_interfaces'
+#: Exit status without ``marine_acoustic_msgs`` (and without ``wait_for_interfaces``).
+EXIT_NO_INTERFACES = 3
+#: Seconds between import attempts while waiting for ``marine_acoustic_msgs``.
+RETRY_PERIOD = 2.0
 
 
 @dataclass(frozen=True)
 class AdapterConfig(ProjectedOptions, InputConfig):
-    """The importer's imaging-sonar settings plus input QoS and the time rule."""
+    """The importer's imaging-sonar settings plus input QoS, the time rule, and what to do without
+    the message package."""
+
+    wait_for_interfaces: bool = setting(False, 'without marine_acoustic_msgs, stay up and retry the import '
+                                        f'every {RETRY_PERIOD:g} s (default: exit with status {EXIT_NO_INTERFACES})',
+                                        read_only=True)
 
 
 def convert(msg: Any, config: ProjectedOptions, scan_time: float = 0.0) -> tuple[Any, Any, int]:
@@ -55,17 +69,38 @@ class ProjectedSonarAdapter(SonarNode):
         self.pub_info = self.create_publisher(LaserScan, 'sonar/sector_info', out)
         self.last_ns = 0
         self.sectors = 0
+        self.sub = None
+        self.retry = None
+        if self._try_subscribe():
+            return
+        missing = f'marine_acoustic_msgs is not importable, so there is no input; build it with `{BUILD_HINT}`'
+        if not self.config.wait_for_interfaces:
+            self.get_logger().error(f'{missing} and source install/setup.bash; exiting (or start with '
+                                    '-p wait_for_interfaces:=true to wait for it)')
+            raise SystemExit(EXIT_NO_INTERFACES)
+        self.get_logger().warning(f'{missing}; waiting for it (retrying the import every {RETRY_PERIOD:g} s)')
+        self.retry = self.create_timer(RETRY_PERIOD, self._retry)
+
+    def _try_subscribe(self) -> bool:
+        """Subscribe ``sonar_image`` if ``marine_acoustic_msgs`` imports; whether it did."""
+        importlib.invalidate_caches()   # a package built since the last attempt
         try:
             from marine_acoustic_msgs.msg import ProjectedSonarImage
         except ImportError:
-            self.sub = None
-            self.say('error', f'marine_acoustic_msgs is not importable, so there is no input; build it with '
-                              f'`{BUILD_HINT}` and source install/setup.bash', reason='no_message_package')
-            return
+            return False
         self.sub = self.subscribe(ProjectedSonarImage, 'sonar_image', self.on_image, self.input_qos())
         c = self.config
         self.get_logger().info(f'sonar_image -> sonar/sector: beam frame {c.beam_frame}, layout {c.image_layout}, '
                                f'{"decoded " + c.intensity.coding if c.decode else "values kept"}')
+        return True
+
+    def _retry(self) -> None:
+        if self._try_subscribe() and self.retry is not None:
+            self.destroy_timer(self.retry)
+            self.retry = None
+
+    def status_values(self) -> dict[str, str]:
+        return {'input': 'sonar_image' if self.sub is not None else 'waiting for marine_acoustic_msgs'}
 
     def on_image(self, msg: Any) -> None:
         """Convert and publish one ProjectedSonarImage (dropped with a reason if it is malformed)."""
