@@ -37,11 +37,12 @@ likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`
 Namespaces: ``namespace:`` at the top of the file puts the whole stack there, and a node's own
 ``namespace:`` puts that node there (a relative one under the stack's, an absolute one as it is).
 ``--namespace NS`` (or ``--ros-args -r __ns:=NS``, as with ``ros2 run``) moves everything, file
-namespaces included, under ``NS``; so two stacks run side by side in ``/a`` and ``/b``. Relative names in ``wait_for`` resolve in the node's namespace
-and relative ``record`` topics in the stack's, as ROS resolves the nodes' own relative topic names;
-absolute names stay. Parameter files key their sections ``/**/NODE_NAME:`` so that they apply in any
-namespace, as the package's files do; a namespaced node whose file keys its section by the bare name
-(which ROS applies in the root namespace only) is refused before anything starts.
+namespaces included, under ``NS``; so two stacks run side by side in ``/a`` and ``/b``. Relative
+names in ``wait_for`` resolve in the node's namespace and relative ``record`` topics in the stack's,
+as ROS resolves the nodes' own relative topic names; absolute names stay. Parameter files key
+their sections ``/**/NODE_NAME:`` so that they apply in any namespace, as the package's files do; a
+namespaced node whose file keys its section by the bare name (which ROS applies in the root
+namespace only) is refused before anything starts.
 
 A stack is named by a file (``--config path/to/stack.yaml``) or by a name looked up in the
 package's ``config/`` wherever the package is installed (``sonar_stack harbour`` finds
