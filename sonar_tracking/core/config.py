@@ -149,10 +149,16 @@ class Config:
                 continue
             s.check(value)
             object.__setattr__(self, f.name, _coerce(s, value))
-        self.validate()
+        # Every class's own rule, bases first: a config made of several (a node's settings mix
+        # the component's, the input's and the pose's) keeps the rules of each.
+        for cls in reversed(type(self).__mro__):
+            rule = cls.__dict__.get('validate')
+            if rule is not None:
+                rule(self)
 
     def validate(self) -> None:
-        """Cross-field checks; override and raise ConfigError. Called after field checks."""
+        """Cross-field checks; define in a subclass and raise ConfigError. Called after the field checks,
+        for every class along the MRO that defines one (so an override need not call ``super()``)."""
 
     @classmethod
     def settings(cls, prefix: str = '') -> Iterator[Setting]:

@@ -56,7 +56,6 @@ class IntensityConfig(Config):
                                low=0.0, high=1e5)
 
     def validate(self) -> None:
-        super().validate()
         if self.max_range and self.max_range <= self.blank_range:
             raise ConfigError(f'max_range = {self.max_range} m must be 0 (no limit) or beyond blank_range = '
                               f'{self.blank_range} m')

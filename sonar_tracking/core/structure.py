@@ -130,7 +130,6 @@ class StructureConfig(Config):
                                 'or band', low=1.0, high=1e4)
 
     def validate(self) -> None:
-        super().validate()
         if self.max_length and self.elongated_length >= self.max_length:
             raise ConfigError(f'elongated_length = {self.elongated_length} m would never act: echoes longer than '
                               f'max_length = {self.max_length} m are rejected already; make it shorter or 0')

@@ -358,3 +358,103 @@ def test_a_jump_back_restarts_the_node_as_new_and_ids_are_never_reused(inproc, n
     assert old_ids and len(mine) == len(theirs) >= 1 and min(mine['track_id']) > max(old_ids)
     fields = [f for f in mine.dtype.names if f != 'track_id']
     assert all(np.array_equal(mine[f], theirs[f]) for f in fields), 'after the restart it tracks as a fresh node'
+
+
+# --- odometry: one bad message never outlives its neighbours -------------------------------------
+
+
+def odom(t: float, x: float | None = None, y: float = 0.0, yaw: float = 0.0):
+    """The platform's odometry at ``t``: moving along x at 2 m/s unless ``x`` is given."""
+    return ma.pose_to_odometry(2.0 * t if x is None else x, y, yaw, stamp_ns=int(round(t * 1e9)))
+
+
+def _nan_orientation(t):
+    msg = odom(t)
+    msg.pose.pose.orientation.w = math.nan
+    return msg
+
+
+BAD_ODOMETRY = {   # case: (bad odometry at t, what the logged reason says)
+    'stamped a year ahead': (lambda t: odom(t + 3.15e7, 2.0 * t), 'not confirmed'),
+    'stamped a minute ahead': (lambda t: odom(t + 60.0, 2.0 * t), 'not confirmed'),
+    'x = 1e300': (lambda t: odom(t, 1e300), 'beyond'),
+    'y = -1e8': (lambda t: odom(t, 0.0, -1e8), 'beyond'),
+    'NaN orientation': (_nan_orientation, 'not finite'),
+}
+
+ODOMETRY_NODES = {
+    'active_detector': (*SECTOR_NODES['active_detector'], lambda n: n.input.pose),
+    'fls_features': (*SECTOR_NODES['fls_features'], lambda n: n.input.pose),
+    'imm_ipda_tracker': ('sonar_tracking.nodes.imm_ipda_tracker', 'ImmIpdaTrackerNode', ['out.pub_tracks'],
+                         lambda n: n.coverage.pose),
+    'gpf_tracker': ('sonar_tracking.nodes.gpf_tracker', 'GpfTrackerNode', ['out.pub_tracks'], lambda n: n.pose),
+}
+
+
+def _data(h, name, t):
+    if name in SECTOR_NODES:
+        h.sector(sector(t))
+    else:
+        _feed_tracker(h, t, 'imm' if name == 'imm_ipda_tracker' else 'gpf')
+
+
+@pytest.mark.parametrize('case', sorted(BAD_ODOMETRY))
+@pytest.mark.parametrize('name', sorted(ODOMETRY_NODES))
+def test_bad_odometry_is_dropped_and_never_poisons_the_poses(inproc, name, case):
+    """A bad odometry message among good ones (10 Hz): dropped and counted with its reason; every later
+    pose, and every output, is that of a node that never saw it."""
+    module, cls, outputs, poses = ODOMETRY_NODES[name]
+    params = {'image.publish': 'sector'} if name == 'fls_features' else {}
+    node, ref = (make(inproc, module, cls, outputs, **params) for _ in range(2))
+
+    def run(h, bad=None):
+        before = said = 0
+        for step in range(5, 41):
+            t = step / 10
+            h.feed('/platform/odometry', odom(t))
+            if bad is not None and step == 15:
+                before, said = h.drops(), len(h.said)
+                h.feed('/platform/odometry', bad(t + 0.05))
+            if step % 10 == 5:
+                _data(h, name, t - 0.5)
+        return before, said
+
+    run(ref)
+    before, said = run(node, BAD_ODOMETRY[case][0])
+    assert node.drops() == before + 1, f'{case}: not dropped once ({node.node.diag.dropped})'
+    assert any(BAD_ODOMETRY[case][1] in s for s in node.said[said:]), node.said[said:]
+    assert node.out == ref.out and len(node.out) == 4 * len(outputs)
+    for t in (1.23, 2.5, 3.9):
+        assert poses(node.node).pose_at(int(t * 1e9)) == poses(ref.node).pose_at(int(t * 1e9))
+
+
+@pytest.mark.parametrize('second', [False, True], ids=['one odometry first', 'two odometry first'])
+@pytest.mark.parametrize('name', sorted(SECTOR_NODES))
+def test_after_a_jump_back_the_first_sector_takes_the_new_recordings_odometry(inproc, name, second):
+    """A looping bag: the new recording's odometry arrives before its first sector; that sector is
+    placed by it (as by a fresh node), not at ``sonar_pose``."""
+    module, cls, outputs = SECTOR_NODES[name]
+    params = {'image.publish': 'sector'} if name == 'fls_features' else {}
+    node, fresh = (make(inproc, module, cls, outputs, **params) for _ in range(2))
+    for t in (11.0, 12.0, 13.0):
+        node.feed('/platform/odometry', odom(t, 500.0 + t))
+        node.sector(sector(t))
+    for h in (node, fresh):
+        h.feed('/platform/odometry', odom(1.0, 40.0, 5.0, 0.3))
+        if second:
+            h.feed('/platform/odometry', odom(1.1, 40.2, 5.0, 0.3))
+        h.sector(sector(1.0))
+    assert node.out[-len(outputs):] == fresh.out and node.drops() == 0
+    assert node.node.input.pose.pose_at(10**9) == fresh.node.input.pose.pose_at(10**9) == (40.0, 5.0, 0.3)
+
+
+@pytest.mark.parametrize('pose', [[1.0, 2.0], [1.0, 2.0, 3.0, 4.0], [1e300, 0.0, 0.0], [0.0, math.nan, 0.0]])
+def test_gpf_tracker_refuses_a_sonar_pose_that_is_not_x_y_yaw(inproc, pose):
+    """At start-up the default is kept (and logged); at run time the change is refused; frames are tracked."""
+    from rclpy.parameter import Parameter
+    h = make(inproc, 'sonar_tracking.nodes.gpf_tracker', 'GpfTrackerNode', ['out.pub_tracks'], sonar_pose=pose)
+    assert h.node.config.sonar_pose == (0.0, 0.0, 0.0)
+    result = h.node.set_parameters([Parameter('sonar_pose', value=pose)])[0]
+    assert not result.successful and 'sonar_pose' in result.reason
+    _feed_tracker(h, 1.0, 'gpf')
+    assert h.drops() == 0 and len(h.out) == 1

@@ -76,7 +76,6 @@ class FlsConfig(Config):
     features: FeatureConfig = dataclasses.field(default_factory=FeatureConfig)
 
     def validate(self) -> None:
-        super().validate()
         reach = self.intensity.max_range
         side = math.ceil(2.0 * reach / self.image.resolution) if reach else 0
         if side > self.image.max_side:
