@@ -51,6 +51,7 @@ from sonar_tracking.ros import (
     SonarNode,
     TrackOutput,
     TrackOutputConfig,
+    input_profile,
     run_node,
     warmup,
 )
@@ -86,7 +87,9 @@ class GpfTrackerNode(SonarNode):
         self.frames = ma.StampPairer(self.PARTS, self.config.max_pending)
         self.origin_ns: int | None = None
         self.resets = self.processed = 0
-        inputs = self.input_qos(50)   # a burst of frames (a replay) waits instead of being overwritten
+        # fls_features' outputs: between the package's nodes always reliable (input_qos is for the
+        # vehicle's odometry); a burst of frames (a replay) waits instead of being overwritten.
+        inputs = input_profile('reliable', 50)
         self.subscribe(Image, 'fls/image', lambda m: self._on_part('image', m), inputs)
         self.subscribe(MapMetaData, 'fls/image_info', lambda m: self._on_part('info', m), inputs)
         self.subscribe(PointCloud2, 'fls/regions', lambda m: self._on_part('regions', m), inputs)

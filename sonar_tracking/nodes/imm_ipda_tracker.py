@@ -43,6 +43,7 @@ from sonar_tracking.ros import (
     SonarNode,
     TrackOutput,
     TrackOutputConfig,
+    input_profile,
     run_node,
     warmup,
 )
@@ -72,7 +73,8 @@ class ImmIpdaTrackerNode(SonarNode):
         self.rejected_rows = 0
         self.resets = 0
         self._warned: set[str] = set()
-        self.subscribe(PointCloud2, 'detections', self._process, self.input_qos(100))
+        # The detector's output: between the package's nodes always reliable (input_qos: sensor topics).
+        self.subscribe(PointCloud2, 'detections', self._process, input_profile('reliable', 100))
         self.coverage = CoverageSource(self, self.input_qos(100))
         self.out = TrackOutput(self, 'tracks', 'tracks')
         modes = ', '.join(m.name for m in self.tracker.modes)

@@ -19,10 +19,14 @@ CONSUMERS = {
                      [('sonar/sector', 'Image'), ('sonar/sector_info', 'LaserScan'),
                       ('platform/odometry', 'Odometry')]),
     'imm_ipda_tracker': ('sonar_tracking.nodes.imm_ipda_tracker:ImmIpdaTrackerNode',
-                         [('detections', 'PointCloud2'), ('platform/odometry', 'Odometry')]),
-    'gpf_tracker': ('sonar_tracking.nodes.gpf_tracker:GpfTrackerNode',
-                    [('fls/image', 'Image'), ('fls/image_info', 'MapMetaData'), ('fls/regions', 'PointCloud2'),
-                     ('platform/odometry', 'Odometry')]),
+                         [('platform/odometry', 'Odometry'), ('sonar/sector_info', 'LaserScan')]),
+    'gpf_tracker': ('sonar_tracking.nodes.gpf_tracker:GpfTrackerNode', [('platform/odometry', 'Odometry')]),
+}
+# topics from the package's own nodes: reliable whatever input_qos says
+BETWEEN_NODES = {
+    'active_detector': ['tracks'],
+    'imm_ipda_tracker': ['detections'],
+    'gpf_tracker': ['fls/image', 'fls/image_info', 'fls/regions'],
 }
 
 
@@ -109,3 +113,20 @@ def test_a_best_effort_sector_stream_gives_detections(ros, node_under_test):
         ros.node.destroy_subscription(sub)
         ros.node.destroy_publisher(pub_img)
         ros.node.destroy_publisher(pub_info)
+
+
+@pytest.mark.parametrize('name', sorted(BETWEEN_NODES))
+def test_topics_between_the_packages_nodes_stay_reliable_under_sensor_data(ros, node_under_test, name):
+    """``input_qos: sensor_data`` (the sensor presets) is for the driver's topics: a reader of another
+    node of the package stays reliable, so a burst of large frames is not lost (as the graph shows it)."""
+    from rclpy.qos import ReliabilityPolicy
+    node_under_test(name, input_qos='sensor_data')
+
+    def readers(topic):
+        return [i for i in ros.node.get_subscriptions_info_by_topic(f'/{topic}') if i.node_name == name]
+    for topic in BETWEEN_NODES[name]:
+        ros.wait(lambda topic=topic: readers(topic), 20.0, f'{name} reading /{topic}')
+        assert [i.qos_profile.reliability for i in readers(topic)] == [ReliabilityPolicy.RELIABLE], topic
+    for topic, _ in CONSUMERS[name][1]:
+        ros.wait(lambda topic=topic: readers(topic), 20.0, f'{name} reading /{topic}')
+        assert [i.qos_profile.reliability for i in readers(topic)] == [ReliabilityPolicy.BEST_EFFORT], topic
