@@ -140,8 +140,8 @@ class BirthConfig(Config):
                           low=0.0, high=1e6, low_open=True)
     separation: float = setting(1.0, 'a track also explains every region closer than this to its estimate '
                                 '(fragments of its target)', unit='m', low=0.0, high=1e4)
-    confirm_hits: int = setting(2, 'frames in which a track sees its target, birth included, to confirm it',
-                                low=1, high=1000)
+    confirm_hits: int = setting(2, 'frames in which a track sees its target with a region at it (an independent '
+                                'detection), birth included, to confirm it', low=1, high=1000)
     max_tracks: int = setting(100, 'no more births beyond this many tracks', low=1, high=100000)
 
 

@@ -52,8 +52,8 @@ from scipy.optimize import linear_sum_assignment
 
 from sonar_tracking.core.gpf.config import BirthConfig, LostConfig, TemplateConfig
 
-__all__ = ['birth_covariance', 'unexplained', 'mahalanobis2', 'gated_assignment', 'reseed_pairs', 'spaced', 'widen',
-           'template_may_update', 'blend_template', 'should_end', 'left_coverage']
+__all__ = ['birth_covariance', 'explains', 'unexplained', 'mahalanobis2', 'gated_assignment', 'reseed_pairs',
+           'spaced', 'widen', 'template_may_update', 'blend_template', 'should_end', 'left_coverage']
 
 
 def birth_covariance(xy: np.ndarray, config: BirthConfig, sensor_xy: tuple[float, float] | None = None
@@ -113,23 +113,28 @@ def reseed_pairs(regions_xy: np.ndarray, means: np.ndarray, position_covs: np.nd
     return gated_assignment(mahalanobis2(regions_xy, means, position_covs, birth_covs), gate)
 
 
-def unexplained(regions_xy: np.ndarray, means: np.ndarray, position_covs: np.ndarray, config: BirthConfig,
-                birth_covs: np.ndarray, separation: float) -> np.ndarray:
-    """Which regions ``(N, 2)`` no track explains (see module docstring), given the tracks'
-    positions ``(T, 2)``, position covariances ``(T, 2, 2)`` and the regions' initial covariances
-    ``(N, 4, 4)``."""
-    n = len(regions_xy)
-    free = np.ones(n, bool)
-    if n == 0 or len(means) == 0:
-        return free
+def explains(regions_xy: np.ndarray, means: np.ndarray, position_covs: np.ndarray, config: BirthConfig,
+             birth_covs: np.ndarray, separation: float) -> np.ndarray:
+    """``(T, N)``: whether track ``t`` explains region ``n`` (see module docstring: its nearest region
+    within the gate, and every region closer than ``separation``), given the tracks' positions
+    ``(T, 2)``, position covariances ``(T, 2, 2)`` and the regions' initial covariances ``(N, 4, 4)``."""
+    out = np.zeros((len(means), len(regions_xy)), bool)
+    if out.size == 0:
+        return out
     m2 = mahalanobis2(regions_xy, means, position_covs, birth_covs)
     d = regions_xy[None, :, :] - means[:, None, :]
     nearest = np.argmin(m2, axis=1)
     rows = np.arange(len(means))
     hit = m2[rows, nearest] < config.gate
-    free[nearest[hit]] = False
-    free &= ~np.any(np.hypot(d[..., 0], d[..., 1]) < separation, axis=0)
-    return free
+    out[rows[hit], nearest[hit]] = True
+    out |= np.hypot(d[..., 0], d[..., 1]) < separation
+    return out
+
+
+def unexplained(regions_xy: np.ndarray, means: np.ndarray, position_covs: np.ndarray, config: BirthConfig,
+                birth_covs: np.ndarray, separation: float) -> np.ndarray:
+    """Which regions ``(N, 2)`` no track explains (:func:`explains`)."""
+    return ~explains(regions_xy, means, position_covs, config, birth_covs, separation).any(axis=0)
 
 
 def spaced(points: np.ndarray, separation: float) -> np.ndarray:

@@ -12,7 +12,11 @@ Per frame at time t (§4.2.3):
    match the template the frame does not update the track and its covariance widens (step 3);
 3. templates follow the targets' aspect where that is safe, tracks lost too long or outside the
    sonar's coverage too long end, regions no track explains start tentative tracks (step 1), and
-   tracks that saw their target in ``birth.confirm_hits`` frames are confirmed (:mod:`.management`).
+   tracks confirmed by ``birth.confirm_hits`` independent detections are confirmed
+   (:mod:`.management`): a frame counts when the track saw its target there *and* a region of that
+   frame lies at it (the track explains it), the birth region included. A template match alone is
+   no detection: it is the track's own template found again, so a track born from one speckle
+   region that the next image still holds would otherwise confirm itself.
 
 The updates of all tracks are done together: their particles' windows are looked up in one
 batch (:meth:`.cues.CueModel.values`), as are the windows at their estimates, and the random
@@ -58,6 +62,7 @@ from sonar_tracking.core.gpf.gaussian import kalman_update
 from sonar_tracking.core.gpf.management import (
     birth_covariance,
     blend_template,
+    explains,
     left_coverage,
     reseed_pairs,
     should_end,
@@ -280,6 +285,7 @@ class GpfTracker:
             rep.reseeded = self._reseed(xy, covs)
             self._templates(frame.windows)
             rep.outside = self._coverage(frame)
+        self._count_detections(xy, covs)
         rep.ended, rep.ended_outside = self._end()
         if imaged or frame is None:     # a particle track's template needs image data at its birth
             rep.born = self._births(xy, covs, frame, used)
@@ -399,8 +405,19 @@ class GpfTracker:
 
     def _hit(self, tr: GpfTrack) -> None:
         tr.seen, tr.misses = True, 0
-        tr.hits += 1
         tr.last_seen = tr.stamp
+
+    def _count_detections(self, xy: np.ndarray, covs: np.ndarray) -> None:
+        """Count a detection for every track that saw its target in this frame and explains one of
+        its regions (:func:`.management.explains`): the hits that confirm a track."""
+        if not self.tracks or len(xy) == 0:
+            return
+        means = np.array([tr.mean[:2] for tr in self.tracks])
+        pcov = np.array([tr.cov[:2, :2] for tr in self.tracks])
+        at = explains(xy, means, pcov, self.config.birth, covs, self.config.birth.separation).any(axis=1)
+        for tr, detected in zip(self.tracks, at, strict=True):
+            if tr.seen and detected:
+                tr.hits += 1
 
     def _miss(self, tr: GpfTrack) -> None:
         tr.seen = False

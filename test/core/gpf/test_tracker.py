@@ -417,3 +417,20 @@ def test_updating_tracks_together_equals_updating_them_one_by_one():
         np.testing.assert_array_equal(a.cov, b.cov)
         np.testing.assert_array_equal(a.last_weights, b.last_weights)
     assert together.rng.random() == alone.rng.random()
+
+
+@pytest.mark.parametrize('method', ['gpf', 'sir'])
+def test_a_track_born_from_one_region_is_not_confirmed_by_its_own_template(method):
+    """A static echo (a persistent speckle peak) segmented as a region in one frame only: the track
+    born on it finds its template again in every later image, but only a region at the track is an
+    independent detection, so it stays tentative; a second region at it confirms it."""
+    rng = np.random.default_rng(21)
+    echo = (10.0, 0.5)
+    frames = [(image(rng, echo), regions(echo))] + [(image(rng, echo), regions()) for _ in range(9)]
+    tracker = GpfTracker(rng=np.random.default_rng(22), method=method)
+    recs = run(tracker, frames)
+    assert all(len(r) == 1 for r in recs), [len(r) for r in recs]
+    assert tracker.tracks[0].seen and tracker.tracks[0].hits == 1
+    assert not any(r['confirmed'].any() for r in recs)
+    tracker.step(50.0, image(rng, echo), GRID, regions(echo), (0.0, 0.0, 0.0))
+    assert tracker.tracks[0].confirmed and tracker.tracks[0].hits == 2
