@@ -7,6 +7,7 @@ import os
 import signal
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -36,8 +37,18 @@ def shipped_sections() -> list[tuple[str, str]]:
 SECTIONS = shipped_sections()
 
 
+def executable(node: str) -> list[str]:
+    """What ``ros2 run sonar_tracking NODE`` runs: ``lib/sonar_tracking/NODE`` of the first prefix on
+    ``AMENT_PREFIX_PATH`` that has it (the suite runs with the colcon install sourced), else the module."""
+    for prefix in filter(None, os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep)):
+        path = Path(prefix) / 'lib' / 'sonar_tracking' / node
+        if path.is_file():
+            return [str(path)]
+    return [sys.executable, '-m', f'sonar_tracking.nodes.{node}']
+
+
 def start(node: str, namespace: str, *params_files, extra: tuple[str, ...] = ()) -> subprocess.Popen:
-    cmd = [sys.executable, '-m', f'sonar_tracking.nodes.{node}', '--ros-args', '-r', f'__ns:={namespace}', *extra]
+    cmd = [*executable(node), '--ros-args', '-r', f'__ns:={namespace}', *extra]
     for f in params_files:
         cmd += ['--params-file', str(f)]
     return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
@@ -82,6 +93,7 @@ def test_every_shipped_section_applies_under_a_namespace(ros):
         try:
             for i, (rel, node) in batch:
                 want = param_files.parameters_for(param_files.load(root / rel), node, f'/auv{i}/deep')
+                assert want, f'{rel}: no section applies to {node} under /auv{i}/deep'
                 got = get_parameters(ros, f'/auv{i}/deep/{node}', sorted(want))
                 wrong = {n: (want[n], got[n]) for n in want if not same(want[n], got[n])}
                 assert not wrong, f'{rel} [{node}] under /auv{i}/deep: (file, node) {wrong}'
