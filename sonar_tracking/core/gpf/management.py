@@ -134,7 +134,7 @@ def explains(regions_xy: np.ndarray, means: np.ndarray, position_covs: np.ndarra
 def unexplained(regions_xy: np.ndarray, means: np.ndarray, position_covs: np.ndarray, config: BirthConfig,
                 birth_covs: np.ndarray, separation: float) -> np.ndarray:
     """Which regions ``(N, 2)`` no track explains (:func:`explains`)."""
-    return ~explains(regions_xy, means, position_covs, config, birth_covs, separation).any(axis=0)
+    return ~np.any(explains(regions_xy, means, position_covs, config, birth_covs, separation), axis=0)
 
 
 def spaced(points: np.ndarray, separation: float) -> np.ndarray:

@@ -414,7 +414,7 @@ class GpfTracker:
             return
         means = np.array([tr.mean[:2] for tr in self.tracks])
         pcov = np.array([tr.cov[:2, :2] for tr in self.tracks])
-        at = explains(xy, means, pcov, self.config.birth, covs, self.config.birth.separation).any(axis=1)
+        at = np.any(explains(xy, means, pcov, self.config.birth, covs, self.config.birth.separation), axis=1)
         for tr, detected in zip(self.tracks, at, strict=True):
             if tr.seen and detected:
                 tr.hits += 1
