@@ -7,13 +7,18 @@ recorded as ``offered_qos_profiles``, so a replay offers the same QoS. Messages 
 their receive time (the node clock, so ``use_sim_time`` works). Without topics, every topic that
 appears is recorded. Ctrl-C or SIGTERM closes the bag cleanly.
 
-The bag is written by :class:`~sonar_tracking.io.bags.writer.BagWriter`: everything received is
-on disk (data and ``metadata.yaml``, rosbag2 version 9 as ROS 2 Jazzy writes it) within
-``--flush-interval`` seconds, so ``kill -9`` or a power cut loses at most that much. A full disk
-(or a file size limit) stops the recording with a message: the bag keeps everything flushed before
-and is closed as well as the space allows. ``--split-size`` / ``--split-duration`` start a new file
-when the current one reaches that size or duration, so one damaged file costs only its part.
-``bag_record --repair BAG`` makes a bag left by a killed recorder whole for every reader.
+The bag is written by :class:`~sonar_tracking.io.bags.writer.BagWriter`: a flush every
+``--flush-interval`` seconds puts everything received on disk (data, then ``metadata.yaml``,
+rosbag2 version 9 as ROS 2 Jazzy writes it). ``kill -9`` or a power cut keeps every message
+received before the start of the last completed flush, so it loses at most one interval plus the
+flush's ``fsync`` time of received messages. The rewrite of ``metadata.yaml`` (atomic, after the
+data) is the observable flush signal: its ``message_count`` is on disk. The bag folder appears
+complete (built under a hidden name, then renamed): a killed recording opens as it is in rosbags,
+the ``mcap`` library, ``bag_replay`` and ``sonar_import``. A full disk (or a file size limit) stops
+the recording with a message: the bag keeps everything flushed before and is closed as well as
+the space allows. ``--split-size`` / ``--split-duration`` start a new file when the current one
+reaches that size or duration, so one damaged file costs only its part. ``bag_record --repair BAG``
+makes a bag whose file was torn (a power cut, a disk error) whole for every reader.
 
 The package's own topics (DESIGN §4) have known types, so they are subscribed at once, before any
 publisher exists (reliable, volatile): a recorder started first misses nothing of a pipeline started

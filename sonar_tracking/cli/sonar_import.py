@@ -11,8 +11,9 @@ regions, tracks, detections, sonar path).
 
 Exit codes: 0 = everything imported; 1 = imported, but with problems (each printed with its topic
 and stamp: undecodable or malformed messages skipped, pings padded, missing pings, time gaps, a
-cut-off file, topics of unknown type); 2 = nothing imported (bad arguments, unreadable recording,
-no sonar topic, output exists).
+cut-off file, topics of unknown type, NaN values); 2 = nothing imported (bad arguments, unreadable
+recording, no sonar topic, no usable sector, output exists). The bag is built in a hidden folder
+beside the output and renamed to it only when the import succeeded: exit code 2 leaves no output.
 """
 from __future__ import annotations
 
@@ -115,6 +116,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``sonar_import``."""
     args = _parser().parse_args(argv)
     from sonar_tracking.core.config import ConfigError
+    from sonar_tracking.io.bags import BagWriteError
     from sonar_tracking.io.importers import RecordingError, SectorBagWriter, open_recording, run_import
     try:
         options = options_from_args(args)
@@ -147,6 +149,9 @@ def main(argv: list[str] | None = None) -> int:
     except RecordingError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return EXIT_FAILED
+    except Exception as exc:  # noqa: BLE001 - a reader library's own failure on bytes it does not expect
+        print(f'error: {args.recording} cannot be read ({type(exc).__name__}: {exc})', file=sys.stderr)
+        return EXIT_FAILED
     if args.inspect:
         print(f'{args.recording}: {recording.kind} recording')
         for t in topics:
@@ -159,23 +164,32 @@ def main(argv: list[str] | None = None) -> int:
     for t in topics:
         if t.note:
             recording.problem(t.name, 0, t.note)
-    writer = None
+    writer, committed, failure = None, False, ''
     try:
         if not args.inspect:
             writer = SectorBagWriter(args.output, args.storage)
         stats = run_import(recording, options, writer)
+        if writer is not None and stats.sectors:
+            writer.commit()
+            committed = True
     except RecordingError as exc:
-        print(f'error: {exc}', file=sys.stderr)
-        return EXIT_FAILED
+        failure = str(exc)
+    except (BagWriteError, OSError) as exc:
+        failure = f'cannot write {args.output}: {exc}'
+    except Exception as exc:  # noqa: BLE001 - a reader library's own failure on bytes it does not expect
+        failure = f'reading {args.recording} failed ({type(exc).__name__}: {exc})'
     finally:
-        if writer is not None:
-            writer.close()
+        if writer is not None and not committed:      # nothing half-written is left at the output
+            writer.discard()
+    if failure:
+        print(f'error: {failure}; nothing written', file=sys.stderr)
+        return EXIT_FAILED
     _report(stats, recording)
-    verb = 'would write' if args.inspect else 'wrote'
+    verb = 'would write' if args.inspect else 'wrote' if stats.sectors else 'wrote nothing:'
     geoms = ', '.join(f'{n} x ({b} bins x {w} beams, {inc:g} deg)' for (b, w, inc), n in stats.geometries.items())
     print(f'sonar_import: {verb} {stats.sectors} sectors ({geoms or "none"}) from {stats.pings_in} pings / '
           f'{stats.frames_in} frames ({stats.pings_out} ping columns), {stats.odometry} odometry messages'
-          f'{"" if args.inspect else f" to {args.output}"}; {len(stats.problems)} problems',
+          f'{"" if args.inspect or not stats.sectors else f" to {args.output}"}; {len(stats.problems)} problems',
           file=sys.stdout if args.inspect else sys.stderr)
     if stats.sectors == 0:
         return EXIT_FAILED

@@ -11,8 +11,16 @@ Rows are grouped by ``scan`` (in order of first appearance); every row of a scan
 scan's time. A row whose ``x`` and ``y`` are both empty marks a scan without detections.
 Bad rows (unparsable numbers, a time that differs from its scan's, NaN, a covariance that is not
 positive definite, a clutter density that is not positive) are reported on stderr with their
-line number and skipped; the rest is processed. A scan whose time is not after the previous
-scan's is dropped (same time) or restarts the tracker (earlier), as in the node.
+line number and skipped; the rest is processed. The first :data:`MAX_REPORTS` bad rows (and as
+many notes about scans) are printed one by one, the others are counted and summarised by reason
+at the end. A scan whose time is not after the previous scan's is dropped (same time) or restarts
+the tracker (earlier), as in the node.
+
+Refused with exit code 2 (the message says why): a header that names a used column twice, no
+header within the first :data:`MAX_HEADER_LINES` lines or a header line longer than
+:data:`MAX_LINE` bytes (``/dev/zero``, a binary file), a line running over :data:`MAX_RUN` bytes
+without a line end. Memory and work per line are bounded; input that goes on for ever with
+proper lines (a pipe) is processed as a stream.
 
 Output (``--output``, ``-`` for stdout): ``scan, t, track_id, x, y, vx, vy, existence, confirmed,
 mode_cv, mode_ccw, mode_cw``, one row per track per scan (``--confirmed-only``: confirmed tracks).
@@ -24,8 +32,10 @@ and ignored) or as a plain mapping of setting names to values.
 from __future__ import annotations
 
 import argparse
+import collections
 import csv
 import math
+import re
 import sys
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -104,6 +114,12 @@ def _node_only_settings() -> set[str]:
 
 #: Longest input line read; a longer one is a bad row (memory stays bounded).
 MAX_LINE = 1 << 20
+#: Longest line skipped as a bad row; a longer one ends the input (no line end in sight: not a text CSV).
+MAX_RUN = 16 << 20
+#: Lines read looking for the header (blank ones before it are skipped).
+MAX_HEADER_LINES = 1000
+#: Bad rows, and notes about scans, printed one by one; the others are counted and summarised.
+MAX_REPORTS = 20
 #: Rows parsed before their measurements are checked together (one vectorised check per block).
 BLOCK = 4096
 _BOMS = {b'\xff\xfe': 'UTF-16', b'\xfe\xff': 'UTF-16', b'\xff\xfe\x00\x00': 'UTF-32'}
@@ -117,6 +133,7 @@ class _Lines:
     def __init__(self, raw: BinaryIO, report) -> None:
         self.raw, self.report = raw, report
         self.latin1 = 0
+        self.header_read = False         # set by the reader once it has its header
 
     def __iter__(self) -> Iterator[str]:
         block = self.raw.read(64 << 10)
@@ -126,7 +143,7 @@ class _Lines:
         if block.startswith(b'\xef\xbb\xbf'):
             block = block[3:]
         cr_only = b'\r' in block and b'\n' not in block
-        number, pending, skipping = 0, b'', False
+        number, pending, skipping, skipped = 0, b'', False, 0
         while block:
             if cr_only:
                 block = block.replace(b'\r', b'\n')
@@ -135,13 +152,25 @@ class _Lines:
             for part in parts:
                 number += 1
                 if skipping or len(part) > MAX_LINE:     # (the end of) a line too long
+                    if not self.header_read:
+                        raise InputError(f'line {number}, where the header belongs, is longer than {MAX_LINE} '
+                                         f'bytes: not a CSV file')
                     skipping = False
                     self.report(number, f'the line is longer than {MAX_LINE} bytes')
                     yield '\n'
                 else:
                     yield self._decode(part, number) + '\n'
             if len(pending) > MAX_LINE:
+                if not self.header_read:
+                    raise InputError(f'line {number + 1}, where the header belongs, is longer than {MAX_LINE} bytes: '
+                                     f'not a CSV file')
+                if not skipping:
+                    skipped = 0
+                skipped += len(pending)
                 pending, skipping = b'', True
+                if skipped > MAX_RUN:
+                    raise InputError(f'line {number + 1} runs over {MAX_RUN} bytes without a line end: the rest of '
+                                     f'the input is not a text CSV')
             block = self.raw.read(1 << 20)
         if skipping:
             self.report(number + 1, f'the line is longer than {MAX_LINE} bytes')
@@ -160,10 +189,14 @@ class _Lines:
 
 
 class _Reports:
-    """Bad-row reports, printed in line order one block at a time."""
+    """Bad-row reports, printed in line order one block at a time: the first ``limit`` one by one, the
+    others counted by reason for :meth:`summary`. Also the notes about scans (:meth:`note`), likewise."""
 
-    def __init__(self, errors: TextIO) -> None:
+    def __init__(self, errors: TextIO, limit: int = MAX_REPORTS) -> None:
         self.errors, self.pending, self.count = errors, [], 0
+        self.limit = limit
+        self.shown = {'row': 0, 'note': 0}
+        self.hidden: dict[str, collections.Counter] = {'row': collections.Counter(), 'note': collections.Counter()}
 
     def __call__(self, line: int, reason: str) -> None:
         self.pending.append((line, reason))
@@ -171,8 +204,35 @@ class _Reports:
 
     def flush(self) -> None:
         for line, reason in sorted(self.pending):
-            print(f'line {line}: {reason}; row skipped', file=self.errors)
+            self._show('row', f'line {line}: {reason}; row skipped', reason)
         self.pending = []
+
+    def note(self, text: str) -> None:
+        """A message about a scan (printed like a bad row: the first ``limit``, then counted)."""
+        self._show('note', text, text)
+
+    def _show(self, what: str, text: str, reason: str) -> None:
+        if self.shown[what] < self.limit:
+            self.shown[what] += 1
+            print(text, file=self.errors)
+            return
+        hidden = self.hidden[what]
+        kind = _KIND.sub('#', reason)
+        hidden[kind if kind in hidden or len(hidden) < 50 else 'other reasons'] += 1
+
+    def summary(self) -> None:
+        """The reports not printed, by reason (numbers and quoted values shown as #)."""
+        for what, name in (('row', 'bad rows'), ('note', 'notes about scans')):
+            hidden = self.hidden[what]
+            if hidden:
+                reasons = '; '.join(f'{n} x {kind}' for kind, n in hidden.most_common(10))
+                more = f'; {len(hidden) - 10} more reasons' if len(hidden) > 10 else ''
+                print(f'... and {sum(hidden.values())} more {name} not shown (only the first {self.limit} are): '
+                      f'{reasons}{more}', file=self.errors)
+
+
+#: What makes two reasons differ but not their kind: quoted values and numbers.
+_KIND = re.compile(r"'[^']*'|-?\b\d[\w.+-]*")
 
 
 def _float(text: str, column: str, decimal_comma: bool) -> float:
@@ -212,7 +272,8 @@ class DetectionReader:
 
     def __init__(self, raw: BinaryIO, errors: TextIO, config: TrackerConfig) -> None:
         self.report = _Reports(errors)
-        self.lines = iter(_Lines(raw, self.report))
+        self.lines_source = _Lines(raw, self.report)
+        self.lines = iter(self.lines_source)
         self.reader = csv.reader(self.lines)
         self.config = config
         self._last_line = self._line_offset = 0
@@ -234,7 +295,11 @@ class DetectionReader:
 
     def _header(self) -> list[str]:
         for row in self._rows():
-            if row is None or not any(c.strip() for c in row[1]):
+            if row is None:
+                raise InputError(f'line {self._last_line}, where the header belongs, is not readable as CSV')
+            if not any(c.strip() for c in row[1]):
+                if self._last_line >= MAX_HEADER_LINES:
+                    raise InputError(f'no header in the first {MAX_HEADER_LINES} lines')
                 continue
             line, cells = row
             header = [h.strip().lower() for h in cells]
@@ -249,6 +314,11 @@ class DetectionReader:
             missing = [c for c in REQUIRED if c not in header]
             if missing:
                 raise InputError(f'the header (line {line}) lacks column(s) {missing}; it has {header}')
+            twice = sorted({c for c in REQUIRED + OPTIONAL if header.count(c) > 1})
+            if twice:
+                raise InputError(f'the header (line {line}) names column(s) {twice} more than once: which one holds '
+                                 f'the values is not clear; rename or remove the others')
+            self.lines_source.header_read = True
             return header
         raise InputError('the input is empty: expected a header with columns ' + ', '.join(REQUIRED))
 
@@ -404,9 +474,17 @@ def read_detections(stream: BinaryIO, errors: TextIO, config: TrackerConfig | No
 _ROW = '%d,%.10g,%d,%.10g,%.10g,%.10g,%.10g,%.10g,%d,%.10g,%.10g,%.10g\n'
 
 
-def run(scans: Iterable[Scan], config: TrackerConfig, out: TextIO, errors: TextIO, confirmed_only: bool = False
-        ) -> tuple[int, int]:
-    """Track the scans and write the output rows. Returns ``(rows written, rows rejected by the tracker)``."""
+def run(scans: Iterable[Scan], config: TrackerConfig, out: TextIO, errors: TextIO, confirmed_only: bool = False,
+        reports: _Reports | None = None) -> tuple[int, int]:
+    """Track the scans and write the output rows. Returns ``(rows written, rows rejected by the tracker)``.
+
+    Notes about scans and rows the tracker rejects go to ``reports`` (the reader's, so they are
+    bounded and summarised alike), else straight to ``errors``."""
+    def note(text: str) -> None:
+        if reports is None:
+            print(text, file=errors)
+        else:
+            reports.note(text)
     tracker = ImmIpdaTracker(config)
     out.write(','.join(OUTPUT_COLUMNS) + '\n')
     written = rejected = 0
@@ -419,22 +497,22 @@ def run(scans: Iterable[Scan], config: TrackerConfig, out: TextIO, errors: TextI
             try:
                 tracks = tracker.step(scan.t, z, R, rho)
             except TimeWentBack as back:    # the file holds another recording from here on
-                print(f'scan {scan.number}: time went backwards by {back.back:.6g} s (another recording?): '
-                      'all tracks removed', file=errors)
+                note(f'scan {scan.number}: time went backwards by {back.back:.6g} s (another recording?): '
+                     'all tracks removed')
                 tracker.reset()
                 tracks = tracker.step(scan.t, z, R, rho)
         except TrackingError as exc:
-            print(f'scan {scan.number} (t = {scan.t:g}): skipped: {exc}', file=errors)
+            note(f'scan {scan.number} (t = {scan.t:g}): skipped: {exc}')
             continue
         rep = tracker.report
         if rep.duplicate_stamp:
-            print(f'scan {scan.number}: t = {scan.t:g} repeats the previous scan\'s time; scan skipped', file=errors)
+            note(f'scan {scan.number}: t = {scan.t:g} repeats the previous scan\'s time; scan skipped')
             continue
         if rep.reset:
-            print(f'scan {scan.number}: {rep.reset}', file=errors)
+            note(f'scan {scan.number}: {rep.reset}')
         for r in rep.rejected:          # the reader checked the same rule: only for a changed config
             rejected += 1
-            print(f'line {scan.lines[r.index]}: {r.reason}; row skipped', file=errors)
+            note(f'line {scan.lines[r.index]}: {r.reason}; row skipped')
         if confirmed_only:
             tracks = tracks[tracks['confirmed'] != 0]
         if len(tracks):
@@ -481,8 +559,10 @@ def main_args(args: argparse.Namespace) -> int:
             print(f'error: cannot write {args.output}: {exc.strerror}', file=errors)
             return 2
         try:
-            written, rejected = run(reader.scans(), config, out, errors, args.confirmed_only)
+            written, rejected = run(reader.scans(), config, out, errors, args.confirmed_only, reader.report)
         except InputError as exc:
+            reader.report.flush()
+            reader.report.summary()
             print(f'error: {exc}', file=errors)
             return 2
         except OSError as exc:
@@ -491,6 +571,7 @@ def main_args(args: argparse.Namespace) -> int:
         finally:
             if out is not sys.stdout:
                 out.close()
+    reader.report.summary()
     print(f'{reader.n_scans} scans, {reader.n_detections - rejected} detections used, {reader.bad + rejected} bad '
           f'rows skipped, {written} track rows written to {args.output}', file=errors)
     return 0

@@ -250,3 +250,79 @@ def test_unusable_input_exits_2_with_the_reason(tmp_path, capsys):
     (tmp_path / 'empty.csv').write_text('')
     code, _, err = run(capsys, '--input', tmp_path / 'empty.csv', '--output', tmp_path / 'o.csv')
     assert code == 2 and 'empty' in err
+
+
+@pytest.mark.parametrize('header', ['scan,t,x,y,x', 'scan,t,x,y,r_xx,r_xy,r_yy,R_XX', 'Scan,scan,t,x,y'])
+def test_a_column_named_twice_is_refused(tmp_path, capsys, header):
+    (tmp_path / 'det.csv').write_text(header + '\n' + ','.join(['1'] * len(header.split(','))) + '\n')
+    code, out, err = run(capsys, '--input', tmp_path / 'det.csv', '--output', tmp_path / 'o.csv')
+    twice = {'scan,t,x,y,x': "['x']", 'scan,t,x,y,r_xx,r_xy,r_yy,R_XX': "['r_xx']", 'Scan,scan,t,x,y': "['scan']"}
+    assert code == 2 and f'names column(s) {twice[header]} more than once' in err, err
+    assert not (tmp_path / 'o.csv').exists()
+
+
+class Endless(io.RawIOBase):
+    """``prefix`` then the same byte for ever (as /dev/zero gives it); counts what was read."""
+
+    def __init__(self, prefix: bytes = b'', fill: bytes = b'\0'):
+        self.prefix, self.fill, self.total = prefix, fill, 0
+
+    def readable(self):
+        return True
+
+    def readinto(self, buf):
+        n = len(buf)
+        head, self.prefix = self.prefix[:n], self.prefix[n:]
+        buf[:len(head)] = head
+        buf[len(head):n] = self.fill * (n - len(head))
+        self.total += n
+        return n
+
+
+def test_input_without_line_ends_is_refused_after_a_bounded_read(tmp_path, capsys):
+    code, _, err = run(capsys, '--input', '/dev/zero', '--output', tmp_path / 'o.csv')
+    assert code == 2 and 'where the header belongs, is longer than' in err, err
+    # The same from a stream: refused once one line has run past the bound, not at the end of the input.
+    raw = Endless()
+    with pytest.raises(track_csv.InputError, match='where the header belongs'):
+        track_csv.DetectionReader(raw, io.StringIO(), TrackerConfig())
+    assert raw.total <= track_csv.MAX_LINE + (2 << 20)
+    raw = Endless(b'scan,t,x,y\n0,0,1,1\n1,1,2,2\n')
+    reader = track_csv.DetectionReader(raw, io.StringIO(), TrackerConfig())
+    with pytest.raises(track_csv.InputError, match='without a line end'):
+        list(reader.scans())
+    assert raw.total <= track_csv.MAX_RUN + (2 << 20)
+    # Blank lines for ever before a header, or a line csv refuses where it belongs: refused too.
+    raw = Endless(fill=b'\n')
+    with pytest.raises(track_csv.InputError, match=f'no header in the first {track_csv.MAX_HEADER_LINES} lines'):
+        track_csv.DetectionReader(raw, io.StringIO(), TrackerConfig())
+    assert raw.total <= (2 << 20)
+    with pytest.raises(track_csv.InputError, match='line 1, where the header belongs, is not readable as CSV'):
+        track_csv.DetectionReader(io.BytesIO(b'"' + b'x' * 200_000 + b'"\nscan,t,x,y\n'), io.StringIO(),
+                                  TrackerConfig())
+
+
+def test_many_bad_rows_are_summarised(tmp_path, capsys):
+    """Seeded garbage among good rows: the first MAX_REPORTS bad rows are printed one by one, the rest are
+    counted by reason in one line; the good rows are tracked as without the garbage."""
+    rows, _ = scenario(n_scans=10, n_clutter=2)
+    write_csv(tmp_path / 'clean.csv', rows)
+    code, _, err = run(capsys, '--input', tmp_path / 'clean.csv', '--output', tmp_path / 'clean_out.csv')
+    assert code == 0, err
+    rng = np.random.default_rng(14)
+    good = (tmp_path / 'clean.csv').read_text().splitlines()
+    garbage = [rng.bytes(12).hex()[:int(rng.integers(1, 24))].replace('a', ',') for _ in range(5000)]
+    (tmp_path / 'dirty.csv').write_text('\n'.join(good + [g if g.strip(',') else 'x' for g in garbage]) + '\n')
+    code, _, err = run(capsys, '--input', tmp_path / 'dirty.csv', '--output', tmp_path / 'dirty_out.csv')
+    assert code == 0, err
+    lines = err.splitlines()
+    shown = [ln for ln in lines if ln.startswith('line ')]
+    assert len(shown) == track_csv.MAX_REPORTS and shown[0].startswith(f'line {len(good) + 1}:')
+    (summary,) = [ln for ln in lines if ln.startswith('... and ') and 'bad rows' in ln]
+    hidden = int(summary.split()[2])
+    total = int(lines[-1].split(' bad rows skipped')[0].rsplit(' ', 1)[1])
+    assert total == hidden + track_csv.MAX_REPORTS and total > 4000
+    assert 'x scan = # is not an integer' in summary
+    assert len(lines) < 2 * track_csv.MAX_REPORTS + 10
+    # The garbage rows come after the good ones: the tracks are those of the clean file.
+    assert (tmp_path / 'dirty_out.csv').read_text() == (tmp_path / 'clean_out.csv').read_text()

@@ -58,13 +58,20 @@ def record_sim(tmp_path, launch, name, sim_params, storage='mcap', topics=SIM_TO
     """Record a simulator run; returns (bag path, sectors the simulator says it published)."""
     bag = tmp_path / name
     rec = tool('bag_record', '-o', str(bag), '--storage', storage, *topics)
-    sim = launch('seaking_sim', *sim_params, 'shutdown_when_done:=true')
-    wait_recording(rec, topics)
-    sim.wait(timeout)
-    err = sim.stderr.read()
-    n = int(re.search(r'finished after (\d+) sectors', err).group(1))
-    # One message per sector on each topic: wait until the recorder has flushed them all.
-    wait_until(lambda: on_disk(bag) >= len(topics) * n, 20.0, f'{len(topics) * n} messages in the bag')
+    try:
+        sim = launch('seaking_sim', *sim_params, 'shutdown_when_done:=true')
+        wait_recording(rec, topics)
+        sim.wait(timeout)
+        err = sim.stderr.read()
+        finished = re.search(r'finished after (\d+) sectors', err)
+        assert finished, err
+        n = int(finished.group(1))
+        # One message per sector on each topic: wait until the recorder has flushed them all.
+        wait_until(lambda: on_disk(bag) >= len(topics) * n, 20.0, f'{len(topics) * n} messages in the bag')
+    except BaseException:
+        os.killpg(rec.pid, signal.SIGKILL)      # a failed test leaves no recorder behind
+        rec.communicate(timeout=10)
+        raise
     stop(rec)
     return bag, n
 
@@ -342,6 +349,7 @@ def test_kill_9_at_random_moments_loses_at_most_the_last_second(tmp_path, ros):
     for r in report:
         print('  ', r)
     assert all(r[-1] for r in report), report
+    assert all(r[4] for r in report), 'a killed bag needed bag_record --repair for rosbags'
     replaced = [(i, t['stderr']) for i, t in enumerate(trials) if t.get('replaced')]
     print(f'recorders replaced after recording nothing for 15 s: {len(replaced)}', replaced)
     assert len(replaced) <= 1, replaced

@@ -82,6 +82,9 @@ class BagState:
             return (f'{self.path} ends without a summary (its recorder did not close it): read up to its last '
                     f'complete chunk' if self.open_tail else '')
         if self.metadata is None:
+            if (self.path / 'metadata.yaml').exists():
+                return (f'{self.path} has a metadata.yaml that is not rosbag2 metadata (damaged, or not UTF-8 YAML): '
+                        f'reading its files up to their last complete record')
             return (f'{self.path} has no readable metadata.yaml (its recorder was killed at once, or it is not a '
                     f'rosbag2 folder): reading its files up to their last complete record')
         if self.state in (None, 'closed') and self.closed:
@@ -112,10 +115,10 @@ def bag_state(path: str | Path) -> BagState:
                         open_tail=path.suffix == '.mcap' and _ends_open(path))
     info = None
     try:
-        info = yaml.safe_load((path / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+        info = yaml.safe_load((path / 'metadata.yaml').read_bytes().decode('utf-8'))['rosbag2_bagfile_information']
         if not isinstance(info, dict):
             info = None
-    except (OSError, KeyError, TypeError, yaml.YAMLError):
+    except (OSError, KeyError, TypeError, ValueError, yaml.YAMLError):   # ValueError: not UTF-8
         pass
     files = []
     if info is not None:
@@ -154,14 +157,13 @@ def _reader(path: Path):
 
 def bag_topics(path: str | Path) -> list[BagTopic]:
     """Topics of a bag (from its metadata; from the files themselves when it was not closed)."""
-    from rosbags.rosbag2 import ReaderError
     state = bag_state(path)
     if state.closed:
         try:
             with _reader(state.path) as reader:
                 return [BagTopic(c.topic, c.msgtype, tuple(c.ext.offered_qos_profiles), c.msgdef.data or '')
                         for c in reader.connections]
-        except (ReaderError, OSError):
+        except Exception:  # noqa: BLE001 - rosbags raises several kinds for damaged files: read them directly
             pass
     topics: dict[str, BagTopic] = {}
     for file in _existing(state):
@@ -180,8 +182,8 @@ def read_bag(path: str | Path, topics: list[str] | None = None) -> Iterator[BagM
         try:
             reader = _reader(state.path)
             reader.open()
-        except (ReaderError, OSError) as exc:
-            reason = str(exc)
+        except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds for damaged files: read them directly
+            reason = str(exc) if isinstance(exc, (ReaderError, OSError)) else f'{type(exc).__name__}: {exc}'
         else:
             try:
                 conns = [c for c in reader.connections if topics is None or c.topic in topics]

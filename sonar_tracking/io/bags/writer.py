@@ -12,9 +12,15 @@ definitions) with what a recorder in the field needs:
   summary (schemas, channels, chunk indexes, statistics) in place of the tail.
 * **sqlite3** files use write-ahead logging: every flush commits and checkpoints, so the file
   holds every flushed message; a killed recorder leaves committed data, never a half transaction.
+* The bag folder is built under a hidden name beside it (``.NAME.creating-PID``: reserve, first
+  file, metadata) and renamed to ``NAME`` when complete, so from the moment it exists every
+  reader opens it; sqlite3 files get their tables before their write-ahead log is switched on, so
+  readers that ignore the log (rosbags opens them immutable) read a file killed before its first
+  flush.
 * ``metadata.yaml`` (rosbag2 version 9, ``ros_distro: jazzy``, as ROS 2 Jazzy writes it) is
   written when the bag is opened and rewritten atomically (temporary file, ``fsync``, rename) at
-  every flush, with the counts of what is on disk and ``custom_data.recorder_state``:
+  every flush, after the flush's data is on disk, with the counts of what is on disk and
+  ``custom_data.recorder_state``:
   ``recording`` until the bag is closed, then ``closed`` (or ``stopped: REASON`` when writing
   failed). Readers warn about any bag that is not ``closed``.
 * A full disk (``ENOSPC``, ``EDQUOT``, or ``EFBIG`` from a file size limit) or another write error
@@ -31,6 +37,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import sqlite3
 import struct
 import zlib
@@ -229,6 +236,10 @@ class _McapFile(_Bookkeeping, McapWriter):
         if self.chunk.msgs:
             self.close_chunk()
 
+    def moved(self, path: Path) -> None:
+        """The file was renamed (its folder moved); its descriptor still writes it."""
+        self.path = path
+
     def size(self) -> int:
         return self.bio.tell() + self.chunk.bio.tell()
 
@@ -245,16 +256,31 @@ class _SqliteFile(_Bookkeeping, Sqlite3Writer):
         if path.exists():
             raise FileExistsError(errno.EEXIST, 'exists already', str(path))
         self.path = path
+        self.sync = sync
         self.conn = sqlite3.connect(path)
-        self.conn.execute('PRAGMA journal_mode=WAL')
-        self.conn.execute(f'PRAGMA synchronous={"FULL" if sync else "NORMAL"}')
+        # The schema goes into the database file itself (rollback journal) before the write-ahead log is
+        # switched on: readers that open the file immutable (rosbags) ignore the log, and would refuse a
+        # file killed before its first checkpoint as one "missing tables".
+        self.conn.execute('PRAGMA synchronous=FULL')
         self.conn.executescript(self.SQLITE_SCHEMA)
-        self.cursor = self.conn.cursor()
+        self._wal()
         self.added: list[tuple[object, str]] = []
         self.stats = FileStats(path.name)
         self.pending = FileStats(path.name)
         self.pending_bytes = 0
         self.first_timestamp: int | None = None
+
+    def _wal(self) -> None:
+        self.conn.execute('PRAGMA journal_mode=WAL')
+        self.conn.execute(f'PRAGMA synchronous={"FULL" if self.sync else "NORMAL"}')
+        self.cursor = self.conn.cursor()
+
+    def moved(self, path: Path) -> None:
+        """The file was renamed (its folder moved) with nothing pending: connect to it there."""
+        self.conn.close()
+        self.path = path
+        self.conn = sqlite3.connect(path)
+        self._wal()
 
     def write(self, connection, timestamp: int, data) -> None:
         self._first(timestamp)
@@ -308,6 +334,10 @@ class _SqliteFile(_Bookkeeping, Sqlite3Writer):
     def abort(self) -> None:
         self._rollback()
         self.conn.close()
+
+
+def _raise(exc: BaseException) -> None:
+    raise exc
 
 
 def bag_metadata(storage: str, files: list[FileStats], topics: list[tuple[object, int]], state: str) -> dict:
@@ -373,6 +403,7 @@ class BagWriter(Writer):
         super().__init__(path, version=METADATA_VERSION,
                          storage_plugin=StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3)
         self.storage_id = storage
+        self.name = self.path.name          # of the bag and its files, also while it is built elsewhere
         self.split_size = int(split_size)
         self.split_duration_ns = int(split_duration * 1e9)
         self.sync = sync
@@ -382,15 +413,38 @@ class BagWriter(Writer):
 
     # ------------------------------------------------------------------ rosbags Writer interface
     def open(self) -> None:
-        """Create the bag folder, its space reserve, its first file and its metadata."""
-        self._guard(self.path.mkdir, mode=0o755, parents=True)
+        """Create the bag folder with its space reserve, its first file and its metadata.
+
+        The folder is built under a hidden name beside the bag (``.NAME.creating-PID``) and renamed
+        to the bag's name once it is complete, so the bag folder, from the moment it exists, is a
+        bag every reader opens (a process killed before the rename leaves the hidden folder only).
+        """
+        final = self.path
+        if final.exists() or final.is_symlink():
+            self._guard(_raise, FileExistsError(errno.EEXIST, 'exists already', str(final)))
+        building = final.parent / f'.{final.name}.creating-{os.getpid()}'
+        self._guard(building.mkdir, mode=0o755, parents=True)
+        self.path = building
         try:
-            with open(self.path / RESERVE_NAME, 'wb') as f:
-                f.write(bytes(RESERVE))
-        except OSError:
-            self._release_reserve()      # too little space even for that: record without it
-        self._guard(self._new_file)
-        self._guard(self._write_metadata, 'recording')
+            try:
+                with open(building / RESERVE_NAME, 'wb') as f:
+                    f.write(bytes(RESERVE))
+            except OSError:
+                self._release_reserve()      # too little space even for that: record without it
+            self._guard(self._new_file)
+            self._guard(self._write_metadata, 'recording')
+            if final.exists() or final.is_symlink():
+                self._guard(_raise, FileExistsError(errno.EEXIST, 'exists already', str(final)))
+            self._guard(os.rename, building, final)
+            self.path = final
+            if self.sync:
+                self._guard(_fsync_dir, final.parent)
+            self._guard(self.storage.moved, final / self.storage.path.name)
+        except BaseException:
+            self.abort()
+            shutil.rmtree(building, ignore_errors=True)
+            self.path = final
+            raise
 
     def add_connection(self, topic: str, msgtype: str, **kwargs):
         """A connection (rosbags ``Writer.add_connection``); the metadata lists it from the next flush."""
@@ -459,7 +513,7 @@ class BagWriter(Writer):
     def _new_file(self) -> None:
         cls, ext = (_McapFile, 'mcap') if self.storage_id == 'mcap' else (_SqliteFile, 'db3')
         previous = self.files[-1] if self.files else None
-        self.storage = cls(self.path / f'{self.path.name}_{len(self.files)}.{ext}', self.sync)
+        self.storage = cls(self.path / f'{self.name}_{len(self.files)}.{ext}', self.sync)
         self.files.append(self.storage)
         if self.sync:
             _fsync_dir(self.path)

@@ -71,6 +71,15 @@ def _records(data: bytes, start: int) -> Iterator[tuple[int, dict, bytes] | int]
         pos = body + dlen
 
 
+def _complete(header: dict, op: int) -> bool:
+    """The fields a connection or message record needs are there, with their sizes."""
+    if op == _OP_CONN:
+        return len(header.get('conn', b'')) == 4
+    if op == _OP_MSG:
+        return len(header.get('conn', b'')) == 4 and len(header.get('time', b'')) == 8
+    return True
+
+
 def _decompress(kind: bytes, payload: bytes) -> bytes | None:
     if kind == b'none':
         return payload
@@ -95,7 +104,10 @@ def scan(path: Path, salvage: Salvage, with_messages: bool = True) -> Iterator[t
     salvage.size = len(data)
 
     def handle(header: dict, body: bytes) -> Iterator[tuple[str, int, bytes]]:
-        op = header.get('op', b'\x00')[0]
+        op = header.get('op', b'\x00')[:1] or b'\x00'
+        if not _complete(header, op[0]):
+            return      # a damaged record (a field missing or of the wrong size): skipped
+        op = op[0]
         if op == _OP_CONN:
             (cid,) = struct.unpack('<I', header['conn'])
             f = _fields(body)
@@ -117,15 +129,19 @@ def scan(path: Path, salvage: Salvage, with_messages: bool = True) -> Iterator[t
             if rec + 4 <= len(data):   # a cut chunk: its uncompressed records before the cut still count
                 (hlen,) = struct.unpack_from('<I', data, rec)
                 header = _fields(data[rec + 4:rec + 4 + hlen]) if rec + 4 + hlen <= len(data) else {}
-                if header.get('op', b'\x00')[0] == _OP_CHUNK and header.get('compression') == b'none':
+                if header.get('op', b'\x00')[:1] == bytes([_OP_CHUNK]) and header.get('compression') == b'none':
                     for inner in _records(data[rec + 8 + hlen:], 0):
                         if isinstance(inner, int):
                             break
                         yield from handle(inner[1], inner[2])
             return
-        _, header, body = rec
-        if header.get('op', b'\x00')[0] == _OP_CHUNK:
-            inner_data = _decompress(header.get('compression', b'none'), body)
+        offset, header, body = rec
+        if header.get('op', b'\x00')[:1] == bytes([_OP_CHUNK]):
+            try:
+                inner_data = _decompress(header.get('compression', b'none'), body)
+            except Exception:  # noqa: BLE001 - bz2 and lz4 raise several kinds for damaged data
+                salvage.cut_at = offset      # a damaged chunk: the messages before it are what is readable
+                return
             if inner_data is None:
                 continue
             for inner in _records(inner_data, 0):

@@ -98,6 +98,8 @@ class BagRecording(Recording):
             return
         except ReaderError as exc:
             reason = str(exc)
+        except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds for bytes that are not a bag
+            reason = f'{type(exc).__name__}: {exc}'
         # No index (the recorder was killed): read the records from the start.
         self._salvage = Salvage()
         try:
@@ -113,7 +115,7 @@ class BagRecording(Recording):
     def _scan_ros2(self, defs: dict[str, str]) -> None:
         from rosbags.rosbag2 import Reader, ReaderError
 
-        from sonar_tracking.io.bags import TruncatedBagWarning, bag_topics
+        from sonar_tracking.io.bags import TruncatedBagWarning, bag_state, bag_topics
         try:
             with Reader(self.path) as reader:
                 for c in reader.connections:
@@ -121,8 +123,10 @@ class BagRecording(Recording):
                         defs[c.msgtype] = c.msgdef.data
                     self._topics[c.topic] = (c.msgtype, c.msgcount)
             return
-        except (ReaderError, FileNotFoundError):
-            pass  # a cut-off MCAP file: topics from its channels, definitions built in
+        except ReaderError as exc:
+            reason = str(exc)   # a cut-off MCAP file: topics from its channels, definitions built in
+        except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds for bytes that are not a bag
+            reason = f'{type(exc).__name__}: {exc}'
         try:
             with warnings.catch_warnings():
                 warnings.simplefilter('ignore', TruncatedBagWarning)  # items() reports the cut
@@ -131,7 +135,12 @@ class BagRecording(Recording):
                     if t.msgdef:
                         defs[t.msgtype] = t.msgdef
         except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds for a bad file
-            raise RecordingError(f'{self.path} is not a readable ROS 2 bag ({exc})') from exc
+            raise RecordingError(f'{self.path} is not a readable ROS 2 bag ({reason}; {exc})') from exc
+        if not self._topics:
+            if self.path.is_dir() and not any(f.exists() for f in bag_state(self.path).files):
+                raise RecordingError(f'{self.path} is not a ROS 2 bag: it holds no MCAP or sqlite3 file')
+            raise RecordingError(f'{self.path} holds no topic: it is empty (its recorder ended before the first '
+                                 f'message) or not a ROS 2 bag (rosbags: {reason})')
 
     def topics(self) -> list[TopicInfo]:
         out = []

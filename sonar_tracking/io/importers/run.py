@@ -13,6 +13,8 @@ amplitude by :func:`sonar_tracking.core.intensity.condition` (``32FC1``).
 from __future__ import annotations
 
 import dataclasses
+import os
+import shutil
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,7 +49,12 @@ class ImportStats:
 
 class SectorBagWriter:
     """Writes sectors and odometry into a new rosbag2 (MCAP or sqlite3) with the package's crash-safe
-    writer (:class:`~sonar_tracking.io.bags.writer.BagWriter`: metadata version 9, as Jazzy writes)."""
+    writer (:class:`~sonar_tracking.io.bags.writer.BagWriter`: metadata version 9, as Jazzy writes).
+
+    The bag is built in a hidden folder beside ``out`` (``.NAME.importing-PID``) and appears under
+    ``out`` only in :meth:`commit`, by one rename: a failed or interrupted import leaves no bag at
+    ``out`` (so a rerun is not refused). :meth:`discard` removes the hidden folder.
+    """
 
     def __init__(self, out: Path, storage: str = 'mcap') -> None:
         from rosbags.typesys import Stores, get_typestore
@@ -55,9 +62,17 @@ class SectorBagWriter:
         from sonar_tracking.io.bags import BagWriter
         self.typestore = get_typestore(Stores.ROS2_JAZZY)
         self.types = ma.RosbagsTypes(self.typestore)
-        self.writer = BagWriter(out, storage)
-        self.writer.open()
+        self.out = Path(out)
+        self.staging = self.out.parent / f'.{self.out.name}.importing-{os.getpid()}'
+        self.staging.mkdir(parents=True)
+        self.writer = BagWriter(self.staging / self.out.name, storage)
         self.conns: dict[str, Any] = {}
+        self.closed = False
+        try:
+            self.writer.open()
+        except BaseException:
+            self.discard()
+            raise
 
     def _write(self, topic: str, msgtype: str, msg: Any, log_ns: int) -> None:
         conn = self.conns.get(topic)
@@ -103,7 +118,25 @@ class SectorBagWriter:
         return self.types.new(msgtype, **values)
 
     def close(self) -> None:
-        self.writer.close()
+        """End the bag (summary and metadata) in its hidden folder."""
+        if not self.closed:
+            self.closed = True
+            self.writer.close()
+
+    def commit(self) -> None:
+        """Close the bag and move it to ``out``; FileExistsError if something appeared there meanwhile."""
+        self.close()
+        if self.out.exists() or self.out.is_symlink():
+            raise FileExistsError(f'{self.out} appeared while importing; the import is not written')
+        os.rename(self.staging / self.out.name, self.out)
+        self.staging.rmdir()
+
+    def discard(self) -> None:
+        """Remove the bag being built (nothing is left at ``out``)."""
+        if not self.closed:
+            self.closed = True
+            self.writer.abort()
+        shutil.rmtree(self.staging, ignore_errors=True)
 
 
 def condition_sector(values: np.ndarray, geometry: SectorGeometry,
@@ -123,13 +156,33 @@ def condition_sector(values: np.ndarray, geometry: SectorGeometry,
     return out, geometry
 
 
+def _finite(values: np.ndarray, problem) -> np.ndarray | None:
+    """``values`` with NaN and infinite cells set to 0 (no echo), each such sector reported through
+    ``problem``; None (reported) when no cell is finite: nothing was measured, the sector is skipped."""
+    if values.dtype.kind != 'f':
+        return values
+    bad = ~np.isfinite(values)
+    n = int(bad.sum())
+    if not n:
+        return values
+    if n == values.size:
+        problem(f'every one of its {n} values is NaN or infinite; sector skipped')
+        return None
+    problem(f'{n} of its {values.size} values are NaN or infinite; set to 0 (no echo)')
+    return np.where(bad, values.dtype.type(0), values)
+
+
 def run_import(recording: Recording, options: ImportOptions, writer: SectorBagWriter | None) -> ImportStats:
     """Convert every item of ``recording``; ``writer=None`` only counts (``--inspect``)."""
     stats = ImportStats()
     assembler = SweepAssembler(options.pings, options.max_gap)
     frame_ids: dict[int, str] = {}
 
-    def emit(stamp_ns: int, log_ns: int, values: np.ndarray, geometry: SectorGeometry, frame_id: str) -> None:
+    def emit(topic: str, stamp_ns: int, log_ns: int, values: np.ndarray, geometry: SectorGeometry,
+             frame_id: str) -> None:
+        values = _finite(values, lambda text: recording.problem(topic, stamp_ns, text))
+        if values is None:
+            return
         values, geometry = condition_sector(values, geometry, options)
         key = (geometry.n_bins, geometry.n_beams, round(float(np.degrees(geometry.angle_increment)), 4))
         stats.geometries[key] = stats.geometries.get(key, 0) + 1
@@ -139,7 +192,7 @@ def run_import(recording: Recording, options: ImportOptions, writer: SectorBagWr
 
     def sectors(done) -> None:
         for s in done:
-            emit(s.stamp_ns, s.log_ns, s.values, s.geometry, frame_ids.get(s.stamp_ns, ''))
+            emit(topic, s.stamp_ns, s.log_ns, s.values, s.geometry, frame_ids.get(s.stamp_ns, ''))
 
     item: Item
     topic = options.topic or 'sonar'
@@ -153,7 +206,7 @@ def run_import(recording: Recording, options: ImportOptions, writer: SectorBagWr
         elif item.kind == 'frame':
             f: Frame = item.payload
             stats.frames_in += 1
-            emit(f.stamp_ns, f.log_ns, f.values, f.geometry, item.frame_id)
+            emit(item.topic, f.stamp_ns, f.log_ns, f.values, f.geometry, item.frame_id)
         elif item.kind == 'odometry':
             stats.odometry += 1
             if writer is not None:
