@@ -43,7 +43,7 @@ EXIT_OK, EXIT_UNREADABLE, EXIT_USAGE, EXIT_CLOCK_TAKEN = 0, 1, 2, 3
 #: Longest wall time between two ``/clock`` messages while replaying [s] (published twice as often).
 CLOCK_PERIOD = 0.01
 #: How long ``--clock`` looks for another ``/clock`` publisher before it starts [s] (DDS discovery).
-CLOCK_DISCOVERY = 1.0
+CLOCK_DISCOVERY = 3.0
 #: Messages (and bytes) read ahead to find the next stamp the clock must not pass.
 LOOKAHEAD_MESSAGES, LOOKAHEAD_BYTES = 64, 16 << 20
 

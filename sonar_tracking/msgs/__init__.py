@@ -8,7 +8,7 @@ from sonar_tracking.msgs.errors import AdapterError
 from sonar_tracking.msgs.image import ENCODING_DTYPES, array_to_image, image_to_array
 from sonar_tracking.msgs.markers import covariance_ellipse, track_markers
 from sonar_tracking.msgs.odometry import odometry_to_pose, pose_to_odometry
-from sonar_tracking.msgs.pairing import StampPairer
+from sonar_tracking.msgs.pairing import GIVEN_UP, StampPairer
 from sonar_tracking.msgs.pointcloud import array_to_cloud, cloud_to_array, dtype_to_fields, fields_to_dtype
 from sonar_tracking.msgs.records import (
                       DETECTION_DTYPE,
@@ -36,7 +36,7 @@ __all__ = [
     'DETECTION_DTYPE', 'TRACK_DTYPE', 'TRUTH_DTYPE', 'REGION_DTYPE', 'GPF_TRACK_DTYPE',
     'FEATURE_NAMES', 'RECORD_DTYPES',
     'SectorPair', 'SectorPairer', 'geometry_to_scan', 'scan_to_geometry', 'sector_from_messages',
-    'StampPairer',
+    'StampPairer', 'GIVEN_UP',
     'track_markers', 'covariance_ellipse', 'odometry_to_pose', 'pose_to_odometry',
     'header', 'header_ns', 'ns_to_stamp', 'stamp_to_ns',
     'MessageTypes', 'RclpyTypes', 'RosbagsTypes', 'rclpy_types',

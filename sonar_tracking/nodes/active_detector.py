@@ -100,6 +100,7 @@ class ActiveDetectorNode(SonarNode):
                 self.get_logger().info(f'detector parameters changed: restarted from threshold '
                                        f'{self.detector.threshold:g}')
         self.detector.enabled = new.esc.enabled
+        self._state_values()   # SonarNode reports the change at once
 
     # -- inputs ------------------------------------------------------------------------------
     def _on_tracks(self, msg: PointCloud2) -> None:
@@ -148,9 +149,16 @@ class ActiveDetectorNode(SonarNode):
         before = self.detector.state()
         self.detector.reset()
         self.pub_threshold.publish(Float64(data=self.detector.threshold))
+        self._state_values()
+        self.report_now()
         response.success = True
         response.message = json.dumps(self.detector.state() | {'reset_from': before})
         return response
+
+    def _state_values(self) -> None:
+        """The detector's state in the diagnostics values (after a reset or a switch, before the next sector)."""
+        self.diag.values.update({'next_threshold': f'{self.detector.threshold:.4f}',
+                                 'esc': 'on' if self.detector.enabled else 'off'})
 
 
 def main(args: list[str] | None = None) -> int:

@@ -107,6 +107,7 @@ class GpfTrackerNode(SonarNode):
         self.pose.clear()
         self.origin_ns = None
         self.resets += 1
+        self.diag.values['resets_total'] = str(self.resets)   # SonarNode reports the restart at once
 
     # -- inputs ------------------------------------------------------------------------------
     def _on_part(self, part: str, msg) -> None:
@@ -116,9 +117,10 @@ class GpfTrackerNode(SonarNode):
             self.say('error', f'fls/{part} message dropped: no usable stamp ({exc})', 'malformed')
             return
         frame = self.frames.add(part, stamp, msg)
-        for old, parts in self.frames.pop_dropped():
-            self.say('warning', f'frame at {old / 1e9:.3f} s had only {", ".join(parts)} (no '
-                     f'{", ".join(self.frames.missing(parts))}): dropped', 'unpaired')
+        for old, parts, reason in self.frames.pop_dropped_with_reasons():
+            for given_up in parts:   # counted per message: a part is not a frame
+                self.say('warning', f'fls/{given_up} of the frame at {old / 1e9:.3f} s {ma.GIVEN_UP[reason]} (no '
+                         f'{", ".join(self.frames.missing(parts))}): dropped', reason)
         if frame is not None:
             self._process(stamp, frame)
 

@@ -6,15 +6,22 @@ diagnostics, and then only wires subscriptions and publishers to its core compon
 
 * ``self.config`` is always the current config; ``on_change(old, new)`` hears accepted changes;
 * ``self.subscribe(type, topic, callback, qos)`` wraps the callback so that an unexpected error
-  costs one message, logged and counted under ``internal_error``, never the node;
+  costs one message, logged and counted under ``internal_error``, never the node; messages the
+  middleware lost before the callback (a full queue) are counted under ``queue_overflow`` from
+  gaps in the publisher's sequence numbers
+  (:class:`~sonar_tracking.ros.diagnostics.SequenceGaps`: rmw_fastrtps_cpp numbers messages,
+  rmw_cyclonedds_cpp does not);
 * ``self.input_qos(depth)`` is the reader profile the ``input_qos`` parameter names;
 * ``self.admit(stamp, what, on_reset)`` applies the time rule (:mod:`sonar_tracking.ros.timeline`)
   and ``self.time.accept(stamp)`` notes a processed stamp;
 * ``self.diag`` (:class:`~sonar_tracking.ros.diagnostics.StageDiagnostics`) is published on
-  ``diagnostics`` once a second; ``self.say(...)`` logs a problem at most once a second per kind.
+  ``diagnostics`` once a second, and at once by ``self.report_now()`` when the node's state changes
+  (a node calls it after a reset or an enable; a restart after a jump back in time and an accepted
+  parameter change publish it here); ``self.say(...)`` logs a problem at most once a second per kind.
 """
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -23,7 +30,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.node import Node
 
 from sonar_tracking.core.config import Config, setting
-from sonar_tracking.ros.diagnostics import StageDiagnostics
+from sonar_tracking.ros.diagnostics import QUEUE_OVERFLOW, SequenceGaps, StageDiagnostics
 from sonar_tracking.ros.params import ConfigParameters
 from sonar_tracking.ros.qos import INPUT_QOS, input_profile
 from sonar_tracking.ros.timeline import LATE, RESET, TimeGuard
@@ -35,9 +42,10 @@ __all__ = ['InputConfig', 'SonarNode']
 class InputConfig(Config):
     """How a node reads its input: QoS and the time rule (``sonar_tracking.ros.timeline``)."""
 
-    input_qos: str = setting('reliable', 'QoS of the input subscriptions: reliable, or sensor_data (best effort, '
-                             'what most sonar drivers publish; it also reads reliable publishers)',
-                             choices=INPUT_QOS, read_only=True)
+    input_qos: str = setting('reliable', 'QoS of the subscriptions to sensor topics (sectors, sector info, imaging '
+                             'frames, odometry): reliable, or sensor_data (best effort, what most drivers publish; '
+                             'it also reads reliable publishers); topics between the package\'s nodes are always '
+                             'reliable', choices=INPUT_QOS, read_only=True)
     time_jump_reset: float = setting(3.0, 'a stamp this much older than the last one restarts the node (a looping '
                                      'bag); smaller steps back are dropped', unit='s', low=0.0, high=1e6)
 
@@ -48,10 +56,11 @@ class SonarNode(Node):
     def __init__(self, name: str, config: Config, diag_name: str, *, mutable: set[str] | None = None,
                  skip: tuple[str, ...] = (), check: Callable[[Config], None] | None = None, **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
-        self.params = ConfigParameters(self, config, on_change=self.on_change, skip=skip, mutable=mutable, check=check)
         self.diag = StageDiagnostics(diag_name)
-        self.time = TimeGuard()
         self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
+        self.params = ConfigParameters(self, config, on_change=self._changed, skip=skip, mutable=mutable, check=check)
+        self.time = TimeGuard()
+        self._restarts = 0
         self.create_timer(1.0, self._publish_diagnostics)
 
     @property
@@ -61,6 +70,13 @@ class SonarNode(Node):
 
     def on_change(self, old: Any, new: Any) -> None:
         """Override to apply an accepted parameter change."""
+
+    def _changed(self, old: Any, new: Any) -> None:
+        self.on_change(old, new)
+        before, after = old.flat(), new.flat()
+        changed = [f'{k}={after[k]}' for k in after if after[k] != before.get(k)]
+        self.diag.status['last_parameter_change'] = ', '.join(changed)
+        self.report_now()
 
     def warm_up(self, run: Callable[..., float], *args: Any) -> None:
         """Run a component's warm-up (:mod:`sonar_tracking.ros.warmup`) before subscribing, so
@@ -97,11 +113,45 @@ class SonarNode(Node):
             last = guard.last_ns or 0   # a jump back always has a last stamp
             self.time.reset()
             on_reset(last)
+            self._restarts += 1
+            self.diag.status['restarts'] = str(self._restarts)
+            self.diag.status['last_restart'] = f'time went back by {back:.3f} s to {stamp_ns / 1e9:.6f} s'
+            self.report_now()
         return True
 
-    def subscribe(self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos) -> Any:
-        """A subscription whose callback cannot take the node down (see the module docstring)."""
-        return self.create_subscription(msg_type, topic, self.guarded(callback, f'{topic} message'), qos)
+    def subscribe(self, msg_type: Any, topic: str, callback: Callable[[Any], None], qos,
+                  on_lost: Callable[[int, Any], None] | None = None) -> Any:
+        """A subscription whose callback cannot take the node down and whose lost messages are counted
+        (see the module docstring); ``on_lost(count, msg)`` hears of ``count`` messages lost just
+        before ``msg``. The callback also takes a message alone (tests feed it so)."""
+        run = self.guarded(callback, f'{topic} message')
+        heard_lost = None if on_lost is None else self.guarded(on_lost, f'{topic} message')
+        gaps = SequenceGaps()
+        subscription: list[Any] = []
+
+        def take(msg: Any, info: Any = None) -> None:
+            if info is not None and subscription:
+                lost = self._count_lost(subscription[0], gaps, info)
+                if lost and heard_lost is not None:
+                    heard_lost(lost, msg)
+            run(msg)
+        # rclpy hands the message info only to a callback that cannot be called with the message alone.
+        take.__signature__ = inspect.Signature(  # type: ignore[attr-defined]
+            [inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD) for n in ('msg', 'info')])
+        subscription.append(self.create_subscription(msg_type, topic, take, qos))
+        return subscription[0]
+
+    def _count_lost(self, subscription: Any, gaps: SequenceGaps, info: Any) -> int:
+        try:
+            lost = gaps.lost(info.get('publication_sequence_number'), subscription.get_publisher_count())
+        except Exception as exc:  # noqa: BLE001 - counting must never cost the message itself
+            self.say('error', f'{subscription.topic_name}: message info unreadable: {type(exc).__name__}: {exc}')
+            return 0
+        if lost:
+            self.diag.report(self.get_logger(), QUEUE_OVERFLOW,
+                             f'{lost} {subscription.topic_name} messages lost before they were read (a full '
+                             'queue: the node or the network fell behind the publisher)', 'warning', count=lost)
+        return lost
 
     def guarded(self, callback: Callable[..., None], what: str) -> Callable[..., None]:
         """``callback`` wrapped so an unexpected exception drops ``what`` with a logged reason."""
@@ -120,6 +170,11 @@ class SonarNode(Node):
             self.diag.report(self.get_logger(), reason, text, severity)
         else:
             self.diag.log(self.get_logger(), StageDiagnostics.kind(text), text, severity)
+
+    def report_now(self) -> None:
+        """Publish the diagnostics at once (a state change: reset, enable, restart), besides the
+        once-a-second report."""
+        self._publish_diagnostics()
 
     def _publish_diagnostics(self) -> None:
         # Matched readers per output: whether anyone receives this node's results (and a condition tests wait on).

@@ -3,8 +3,14 @@
 :class:`SectorInput` subscribes ``sonar/sector``, ``sonar/sector_info`` and ``platform/odometry``
 and hands its node one checked sector at a time, in stamp order, with the sonar pose at that stamp:
 
-* the image and its geometry are paired by stamp; a half that never finds its partner is dropped
-  with a warning;
+* the image and its geometry are paired by stamp (:mod:`sonar_tracking.msgs.pairing`); a half
+  that is given up is dropped with a warning and counted, one per message, under its reason:
+  ``partner_lost`` (its partner fell into a gap of the publisher's sequence numbers: the
+  middleware lost it from a full queue, counted under ``queue_overflow``), ``unpaired`` (its
+  partner never came otherwise), ``evicted`` (more than ``max_pending`` stamps waited;
+  ``max_pending`` is at least the input queue depth by default, so a burst does not push out a
+  partner still on its way) or ``duplicate``. So every message received, or lost on the way, is
+  counted once: as part of a processed or dropped sector, or under one of these reasons;
 * a malformed pair (encoding, sizes, geometry that does not match the image or lies beyond the
   physical bounds, values that cannot be echoes) is dropped with the reason
   (:func:`~sonar_tracking.core.sector.check_sector`, the same verdict in every consumer);
@@ -28,18 +34,26 @@ from sensor_msgs.msg import Image, LaserScan
 import sonar_tracking.msgs as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.sector import SectorError, SectorGeometry, check_sector
+from sonar_tracking.msgs.pairing import GIVEN_UP, UNPAIRED
 from sonar_tracking.ros.node import InputConfig, SonarNode
 from sonar_tracking.ros.pose import Pose, PoseConfig, PoseSource
 
-__all__ = ['SectorInputConfig', 'SectorInput']
+__all__ = ['SectorInputConfig', 'SectorInput', 'PARTNER_LOST']
+
+#: A half whose partner the middleware lost (a full queue, counted under ``queue_overflow``).
+PARTNER_LOST = 'partner_lost'
+
+_GIVEN_UP = {**GIVEN_UP, PARTNER_LOST: 'never got its partner (lost before it was read, counted under '
+             'queue_overflow)'}
 
 
 @dataclass(frozen=True)
 class SectorInputConfig(InputConfig, PoseConfig):
     """How a node takes sectors in: QoS, time rule, static pose, odometry wait, pairing queue."""
 
-    max_pending: int = setting(16, 'sector halves kept while waiting for their partner', low=1, high=1000,
-                               read_only=True)
+    max_pending: int = setting(64, 'sector halves kept while waiting for their partner (at least the input queue '
+                               'depth, 50, so a burst does not push out a partner still on its way)', low=1,
+                               high=1000, read_only=True)
 
 
 class SectorInput:
@@ -48,6 +62,8 @@ class SectorInput:
     ``use_odometry()`` says whether poses matter (False: every pose is the origin, for a node
     working in the sensor frame).
     """
+
+    LOST_INTERVALS = 64   # recent gaps per half kept to tell a lost partner from one never sent
 
     def __init__(self, node: SonarNode, on_sector: Callable[..., bool], on_reset: Callable[[], None],
                  use_odometry: Callable[[], bool] = lambda: True) -> None:
@@ -58,24 +74,50 @@ class SectorInput:
         qos = node.input_qos()
         self.pose = PoseSource(node, lambda: node.config, qos, lambda text: node.say('error', text, 'bad_odometry'),
                                self._flush)
-        node.subscribe(Image, 'sonar/sector', lambda m: self._half(self.pairer.add_image, m, 'sector image'), qos)
-        node.subscribe(LaserScan, 'sonar/sector_info', lambda m: self._half(self.pairer.add_info, m, 'sector geometry'),
-                       qos)
+        # Per half: the stamp of its last message, and recent stamp intervals in which the middleware lost some.
+        self._last: dict[str, int | None] = {'image': None, 'info': None}
+        self._lost: dict[str, deque[tuple[int | None, int]]] = {
+            part: deque(maxlen=self.LOST_INTERVALS) for part in self._last}
+        node.subscribe(Image, 'sonar/sector', lambda m: self._half('image', m), qos,
+                       on_lost=lambda n, m: self._lost_before('image', m))
+        node.subscribe(LaserScan, 'sonar/sector_info', lambda m: self._half('info', m), qos,
+                       on_lost=lambda n, m: self._lost_before('info', m))
         node.create_timer(0.05, node.guarded(self._flush, 'sector'))
 
     @property
     def has_odometry(self) -> bool:
         return self.pose.has_odometry
 
-    def _half(self, add, msg, what: str) -> None:
+    @property
+    def held(self) -> int:
+        """Messages received and not yet processed or dropped: halves waiting for their partner, and
+        both halves of each paired sector waiting for its pose."""
+        return self.pairer.pending_parts + 2 * len(self._waiting)
+
+    def _lost_before(self, part: str, msg) -> None:
         try:
-            pair = add(msg)
+            self._lost[part].append((self._last[part], ma.header_ns(msg)))
+        except ma.AdapterError:
+            pass   # the message itself is dropped for its stamp
+
+    def _partner_lost(self, stamp: int, parts: tuple[str, ...]) -> bool:
+        """Whether a partner missing at ``stamp`` fell into a gap the middleware reported."""
+        return any((a is None or a < stamp) and stamp < b
+                   for part in self.pairer.missing(parts) for a, b in self._lost[part])
+
+    def _half(self, part: str, msg) -> None:
+        try:
+            pair = self.pairer.add_image(msg) if part == 'image' else self.pairer.add_info(msg)
+            self._last[part] = ma.header_ns(msg)
         except ma.AdapterError as exc:
-            self.node.say('error', f'{what} dropped: {exc}', 'bad_stamp')
+            self.node.say('error', f'sector {"image" if part == "image" else "geometry"} dropped: {exc}', 'bad_stamp')
             return
-        for stamp, parts in self.pairer.pop_dropped():
-            self.node.say('warning', f'sector {"/".join(parts)} at {stamp / 1e9:.3f} s never got its partner: '
-                          'dropped', 'unpaired')
+        for stamp, parts, reason in self.pairer.pop_dropped_with_reasons():
+            if reason == UNPAIRED and self._partner_lost(stamp, parts):
+                reason = PARTNER_LOST
+            for given_up in parts:   # counted per message: a half is not a sector
+                self.node.say('warning', f'sector {given_up} at {stamp / 1e9:.3f} s {_GIVEN_UP[reason]}: dropped',
+                              reason)
         if pair is not None:
             self._accept(pair)
         self._flush()
@@ -93,7 +135,12 @@ class SectorInput:
         self._waiting.append((stamp, amplitudes, geometry, pair.image.header.frame_id, time.monotonic()))
 
     def _restart(self, last_ns: int) -> None:
+        for stamp, *_ in self._waiting:
+            self.node.say('warning', f'sector at {stamp / 1e9:.3f} s was waiting for its pose when time went back: '
+                          'dropped', 'restart')
         self._waiting.clear()
+        for part in self._lost:
+            self._lost[part].clear()
         self.pairer.restart(last_ns)
         self.pose.clear()
         self.on_reset()

@@ -190,15 +190,19 @@ def test_parameters_refuse_bad_values_with_a_reason_and_apply_good_ones(tracker)
 def test_tracks_targets_from_the_simulated_sonar_through_fls_features(ros, launch):
     """The whole FLS chain: seaking_sim (Table 5 situation 4, one reflector towed toward the sonar) ->
     fls_features -> gpf_tracker; a confirmed track follows the target as imaged."""
-    from sensor_msgs.msg import PointCloud2
+    from sensor_msgs.msg import Image, LaserScan, PointCloud2
     tracks, truth = [], []
+    # The probe also reads the sectors, so the simulator (wait_for_subscribers 2) starts only once it
+    # has matched this process's readers: the truth of the first sectors is not lost to discovery.
     subs = [ros.node.create_subscription(PointCloud2, '/gpf/tracks', tracks.append, KEEP_ALL),
-            ros.node.create_subscription(PointCloud2, '/sonar/truth', truth.append, KEEP_ALL)]
+            ros.node.create_subscription(PointCloud2, '/sonar/truth', truth.append, KEEP_ALL),
+            ros.node.create_subscription(Image, '/sonar/sector', lambda m: None, 10),
+            ros.node.create_subscription(LaserScan, '/sonar/sector_info', lambda m: None, 10)]
     launch('gpf_tracker', params_file=CONFIG)
     launch('fls_features')
     # Regions reach the tracker and its tracks reach us (graph entries of earlier tests' nodes would not say so).
     ros.wait_listened([('fls_features: segmentation', '/fls/regions'), ('gpf_tracker: tracking', '/gpf/tracks')])
-    sim = launch('seaking_sim', 'scenario:=fls4', 'seed:=3', 'duration:=40.2', 'rate:=0.0', 'wait_for_subscribers:=1',
+    sim = launch('seaking_sim', 'scenario:=fls4', 'seed:=3', 'duration:=40.2', 'rate:=0.0', 'wait_for_subscribers:=2',
                  'shutdown_when_done:=true')
     ros.wait(lambda: sim.poll() is not None, 90.0, 'the simulator to finish')
     ros.wait(lambda: len(tracks) >= 7, 20.0, 'tracks of every frame')

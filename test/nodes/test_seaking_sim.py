@@ -159,3 +159,28 @@ def test_fan_image_shows_the_target_where_truth_says(ros, launch):
     x, y = canvas.point_of(row, col)
     truth = ma.cloud_to_array(truths[-1])[0]
     assert np.hypot(x - truth['x'], y - truth['y']) < 0.5
+
+
+def test_diagnostics_say_rate_scenario_clock_subscribers_and_the_end(ros, inproc):
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    from sonar_tracking.nodes.seaking_sim import SeaKingSimNode
+    reports = []
+    subs = [ros.node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: reports.extend(
+                s for s in m.status if s.name == 'seaking_sim: simulation'), KEEP_ALL)]
+    subs += [ros.node.create_subscription(t, n, lambda m: None, KEEP_ALL) for n, t in sim_topics().items()]
+    try:
+        sim = inproc(SeaKingSimNode, scenario='fls3', duration=3.0, rate=0.0, wait_for_subscribers=1)
+        ros.wait(lambda: any('finished after' in s.message for s in reports), 60.0, 'the report of the end')
+        end = next(s for s in reports if 'finished after' in s.message)
+        values = {kv.key: kv.value for kv in end.values}
+        assert end.level == DiagnosticStatus.OK and end.message.startswith('scenario fls3 finished after')
+        assert values['sectors'] == values['processed'] == str(sim.sectors) and sim.sectors > 3
+        assert float(values['rate_hz']) > 0.0 and float(values['sim_time_s']) <= 3.0
+        assert (values['scenario'], values['clock'], values['stamps']) == ('fls3', 'off', 'sim')
+        assert int(values['subscribers /sonar/sector']) >= 1 and 'subscribers /sonar/fan' in values
+        started = [s for s in reports if {kv.key: kv.value for kv in s.values}.get('sectors') == '1']
+        assert started and started[0].level == DiagnosticStatus.OK, 'a report when the first sector went out'
+    finally:
+        for s in subs:
+            ros.node.destroy_subscription(s)

@@ -39,7 +39,7 @@ def test_simulator_off_wall_time_stamps_simulated_time_and_publishes_clock(ros, 
     subs = [ros.node.create_subscription(Image, '/sonar/sector', lambda m: stamps.append(ma.header_ns(m)), 100),
             ros.node.create_subscription(Clock, '/clock', lambda m: clocks.append(ma.stamp_to_ns(m.clock)), 100)]
     try:
-        inproc(SeaKingSimNode, scenario='fls3', rate=4.0)
+        inproc(SeaKingSimNode, scenario='fls3', rate=4.0, publish_clock=True)
         ros.wait(lambda: len(stamps) >= 3 and len(clocks) >= 3, 60.0, 'sectors and /clock')
         assert stamps[0] < 10**11, 'simulated time from stamp_offset 0, not the wall clock'
         assert set(stamps[:3]) <= set(clocks), '/clock carries the stamps of the sectors'
