@@ -20,16 +20,24 @@ file only, not against the kernels it calls from other files, so an edited calle
 callers' cached code stale. :func:`drop_stale_kernel_caches` drops every cached kernel under
 ``sonar_tracking/core`` older than the newest source file there (a no-op on an installed package,
 whose sources do not change). :func:`prepare` does both.
+
+**Parent death.** A process the package starts must not outlive the one that started it, however
+that one ends (a CI timeout's SIGKILL included). Linux sends a chosen signal to a process when its
+parent ends (``PR_SET_PDEATHSIG``, kept across ``exec``): :func:`child_dies_with_parent` asks for it
+in a child between fork and exec (a ``preexec_fn``), :func:`die_with_parent` in the process itself.
+The request names the parent *thread*: a child must be started from a thread that lives as long as
+the parent does (the main thread).
 """
 from __future__ import annotations
 
 import os
 import platform
-from collections.abc import Mapping
+import signal
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 __all__ = ['ALLOCATOR_SETTINGS', 'allocator_env', 'allocator_applied', 'apply_in_process', 'drop_stale_kernel_caches',
-           'prepare']
+           'prepare', 'die_with_parent', 'child_dies_with_parent', 'PARENT_ENV']
 
 #: Variable -> value. 32 MiB is the largest mmap threshold glibc accepts on 64-bit.
 ALLOCATOR_SETTINGS: dict[str, str] = {
@@ -107,3 +115,49 @@ def prepare() -> bool:
     :func:`apply_in_process`). Called where the package's processes start."""
     drop_stale_kernel_caches()
     return apply_in_process()
+
+
+#: ``prctl`` option number (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+#: Set in a child's environment to the pid of the process that starts it: :func:`die_with_parent`
+#: then knows when the parent ended before the child could ask to end with it.
+PARENT_ENV = 'SONAR_TRACKING_PARENT_PID'
+
+
+def _prctl() -> Callable[..., int] | None:
+    try:
+        import ctypes
+        return ctypes.CDLL('libc.so.6', use_errno=True).prctl
+    except (OSError, AttributeError):   # not glibc Linux
+        return None
+
+
+def die_with_parent(signum: int = signal.SIGTERM, parent: int | None = None) -> bool:
+    """Have Linux send this process ``signum`` when its parent ends. ``parent``: the pid that started
+    this process; when this process has another parent already (it was adopted, its parent having
+    ended before this call), it sends itself ``signum`` at once. False where Linux cannot do it."""
+    prctl = _prctl()
+    if prctl is None or prctl(_PR_SET_PDEATHSIG, int(signum), 0, 0, 0) != 0:
+        return False
+    if parent is not None and os.getppid() != parent:
+        os.kill(os.getpid(), signum)
+    return True
+
+
+def child_dies_with_parent(signum: int = signal.SIGTERM, then: Callable[[], None] | None = None
+                           ) -> Callable[[], None]:
+    """A ``preexec_fn`` for :class:`subprocess.Popen`: the child gets ``signum`` when this process (the
+    calling thread: start children from the main thread) ends, however it ends; a child whose parent
+    is gone before the request is made gets it at once. ``then``: the caller's own ``preexec_fn``,
+    run after the request. The C function is looked up before the fork, so between fork and exec
+    the child makes only the request and the check of its parent."""
+    parent, prctl = os.getpid(), _prctl()
+
+    def preexec() -> None:
+        if prctl is not None:
+            prctl(_PR_SET_PDEATHSIG, int(signum), 0, 0, 0)
+            if os.getppid() != parent:
+                os.kill(os.getpid(), signum)
+        if then is not None:
+            then()
+    return preexec

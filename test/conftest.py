@@ -128,10 +128,19 @@ def ros(graph_node):
         graph_node.destroy_client(client)
 
 
+def child_process(cmd: list[str], **kwargs):
+    """``subprocess.Popen(cmd, **kwargs)`` in a session of its own that ends with this test process,
+    however that ends (a CI timeout's SIGKILL included): the child gets SIGTERM then
+    (:func:`sonar_tracking.process.child_dies_with_parent`)."""
+    import subprocess
+    return subprocess.Popen(cmd, start_new_session=True, preexec_fn=process.child_dies_with_parent(), **kwargs)
+
+
 @pytest.fixture
 def launch():
-    """Start package nodes as child processes (``python -m sonar_tracking.nodes.NAME``); ``launch.stop(proc)``
-    interrupts one and returns its log; all are stopped at teardown."""
+    """Start package nodes as child processes (``python -m sonar_tracking.nodes.NAME``) that end with
+    the test process (:func:`child_process`); ``launch.stop(proc)`` interrupts one and returns its
+    log; all are stopped at teardown."""
     import signal
     import subprocess
     import sys
@@ -144,8 +153,7 @@ def launch():
             cmd += ['--params-file', str(params_file)]
         for p in params:
             cmd += ['-p', p]
-        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                start_new_session=True)
+        proc = child_process(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         procs.append(proc)
         return proc
 

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import pytest
 
+from sonar_tracking import process
+
 ROOT = Path(__file__).resolve().parents[1]
 INSTALL = Path(os.environ.get('SONAR_TRACKING_INSTALL', ROOT / 'install'))
 LIBDIR = INSTALL / 'sonar_tracking' / 'lib' / 'sonar_tracking'
@@ -61,7 +63,8 @@ def test_node_starts_and_stops_on_sigint(installed, name, graph_node):
     # A name of its own: the graph may still list nodes of earlier tests' processes.
     probe = f'{name}_exe_{os.getpid()}'
     proc = subprocess.Popen(sourced(f'{installed / name} --ros-args -r __node:={probe}'), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=process.child_dies_with_parent())
     try:
         deadline = time.monotonic() + 30.0
         while time.monotonic() < deadline:

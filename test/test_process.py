@@ -1,10 +1,13 @@
 """Process set-up (sonar_tracking.process): glibc allocator settings (the environment for child
-processes and the re-exec decision) and the removal of stale kernel caches."""
+processes and the re-exec decision), the removal of stale kernel caches, and children that end
+with their parent."""
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
+import time
 
 from sonar_tracking import process
 
@@ -72,3 +75,58 @@ def test_cached_kernels_older_than_any_core_source_are_dropped(tmp_path):
     process.drop_stale_kernel_caches(tmp_path)
     assert not stale.exists()
     assert fresh.exists() and other.exists() and source.exists()
+
+
+_PARENT = """
+import subprocess, sys, threading
+from sonar_tracking.process import child_dies_with_parent
+child = subprocess.Popen([sys.executable, '-c', 'import threading; threading.Event().wait(600)'],
+                         preexec_fn=child_dies_with_parent())
+print(child.pid, flush=True)
+threading.Event().wait(600)
+"""
+
+
+def _alive(pid: int) -> bool:
+    try:
+        with open(f'/proc/{pid}/stat') as f:
+            return f.read().rsplit(')', 1)[1].split()[0] != 'Z'   # a zombie has ended
+    except FileNotFoundError:
+        return False
+
+
+def _wait_until(predicate, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.02)
+    return True
+
+
+def test_a_child_that_asked_ends_when_its_parent_is_killed():
+    """child_dies_with_parent: the parent killed with SIGKILL (no handler of its own runs), its child
+    gets SIGTERM from the kernel and ends."""
+    parent = subprocess.Popen([sys.executable, '-c', _PARENT], stdout=subprocess.PIPE, text=True,
+                              start_new_session=True)
+    child = int(parent.stdout.readline())
+    try:
+        assert _alive(child)
+        parent.kill()
+        parent.wait()
+        assert _wait_until(lambda: not _alive(child), 20.0), 'the child outlived its killed parent'
+    finally:
+        if _alive(child):
+            os.kill(child, signal.SIGKILL)
+
+
+def test_a_process_whose_parent_is_already_gone_ends_at_once():
+    """die_with_parent with the pid of a parent that is no longer this process's parent (it ended
+    before the request could be made): the process gets the signal at once."""
+    script = ('import os, signal\nfrom sonar_tracking.process import die_with_parent\n'
+              'die_with_parent(signal.SIGTERM, parent=os.getpid())\nprint("still running")\n')
+    r = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=60)
+    assert r.returncode == -signal.SIGTERM and 'still running' not in r.stdout
+    script = script.replace('parent=os.getpid()', 'parent=os.getppid()')
+    r = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and 'still running' in r.stdout    # its parent is there: it runs on

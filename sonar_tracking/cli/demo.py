@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from sonar_tracking import process
+
 __all__ = ['main', 'read_run', 'summarise_run']
 
 STACK = 'stack_harbour.yaml'
@@ -169,7 +171,8 @@ def _start_view(out: Path) -> subprocess.Popen | None:
         proc = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.cli.sonar_view', '--always', '--grpc-port',
                                  str(_free_port(9876)), '--web-port', str(_free_port(9090))],
                                 stdout=f, stderr=subprocess.STDOUT, start_new_session=True,
-                                env=dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1'))
+                                env=dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1'),
+                                preexec_fn=process.child_dies_with_parent())
     deadline = time.monotonic() + 60.0
     while time.monotonic() < deadline and proc.poll() is None:
         url = next((line.split(' ', 1)[1] for line in log.read_text().splitlines() if line.startswith('view: ')), None)

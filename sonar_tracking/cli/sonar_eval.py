@@ -16,6 +16,7 @@ Subcommands:
                    without rejection, next to the structure-free scenes
   jipda            IMM-JIPDA against IMM-IPDA on two crossing or parallel targets in clutter, paired
                    differences with 95 % intervals: the docs/results table
+  soak             start-work-stop cycles of every node under CPU load: crashes, hangs, exit codes
 
 The Monte Carlo subcommands run over --jobs processes or a Dask cluster (--cluster).
 """
@@ -29,7 +30,16 @@ __all__ = ['main', 'build_parser']
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every subcommand (their modules load only when run)."""
-    from sonar_tracking.cli import bench, esc_eval, fls_eval, jipda_eval, select_features, structure_eval, track_csv
+    from sonar_tracking.cli import (
+        bench,
+        esc_eval,
+        fls_eval,
+        jipda_eval,
+        select_features,
+        soak,
+        structure_eval,
+        track_csv,
+    )
     parser = argparse.ArgumentParser(prog='sonar_eval', description=__doc__.split('\n\n')[0].replace('``', ''),
                                      epilog=__doc__.split('\n\n', 1)[1],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -72,6 +82,10 @@ def build_parser() -> argparse.ArgumentParser:
                        'paired differences with 95 %% intervals (the docs/results table)')
     jipda_eval.add_arguments(p)
     p.set_defaults(handler=jipda_eval.main_args)
+    p = sub.add_parser('soak', help='start, work and stop every node many times under CPU load: crashes, hangs '
+                       'and exit statuses at SIGINT')
+    soak.add_arguments(p)
+    p.set_defaults(handler=soak.main_args)
     return parser
 
 

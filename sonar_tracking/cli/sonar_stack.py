@@ -70,6 +70,8 @@ from pathlib import Path
 
 import yaml
 
+from sonar_tracking import process
+
 __all__ = ['main', 'StackConfig', 'NodeSpec', 'StackError', 'load_stack', 'find_stack', 'shipped_stacks',
            'apply_settings', 'move', 'command', 'resolve_name', 'check_params_files', 'PACKAGE_PREFIX']
 
@@ -324,7 +326,8 @@ class Child:
     def start(self) -> None:
         env = dict(os.environ, SONAR_TRACKING_DIE_WITH_PARENT='1', PYTHONUNBUFFERED='1')
         self.proc = subprocess.Popen(command(self.spec), stdout=subprocess.PIPE,
-                                     stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True, env=env)
+                                     stderr=subprocess.STDOUT, text=True, bufsize=1, start_new_session=True, env=env,
+                                     preexec_fn=process.child_dies_with_parent())
         threading.Thread(target=self._relay, args=(self.proc,), daemon=True).start()
 
     def _relay(self, proc: subprocess.Popen) -> None:

@@ -12,6 +12,7 @@ import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 import sonar_tracking.msgs as ma
+from sonar_tracking import process
 from sonar_tracking.core.detection import ActiveDetector
 from sonar_tracking.core.tracking import ImmIpdaTracker
 from sonar_tracking.core.tracking.detections import detections_to_measurements
@@ -34,7 +35,7 @@ def bag(tmp_path_factory):
     path = tmp_path_factory.mktemp('replay') / 'scenario1'
     topics = ['/sonar/sector', '/sonar/sector_info', '/sonar/truth', '/platform/odometry']
     rec = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.cli.bag_record', '-o', str(path), *topics],
-                           stderr=subprocess.PIPE, text=True)
+                           stderr=subprocess.PIPE, text=True, preexec_fn=process.child_dies_with_parent())
     # The simulator waits for a subscriber (the recorder subscribes to the package's topics at once).
     sim = subprocess.run([sys.executable, '-m', 'sonar_tracking.nodes.seaking_sim', '--ros-args', '-p',
                           'scenario:=scenario1', '-p', 'rate:=0.0', '-p', f'duration:={SCANS}.0', '-p',

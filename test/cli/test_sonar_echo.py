@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 import sonar_tracking.msgs as ma
+from sonar_tracking import process
 from sonar_tracking.cli.sonar_echo import (
     WIDTH,
     EchoError,
@@ -135,7 +136,8 @@ def echo(ros, topic: str, messages: list, *args: str, best_effort: bool = False,
                      else ReliabilityPolicy.RELIABLE)
     pub = ros.node.create_publisher(PointCloud2, topic, qos)
     proc = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.cli.sonar_echo', *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=process.child_dies_with_parent())
     try:
         ros.wait(lambda: pub.get_subscription_count() > 0 or proc.poll() is not None, timeout,
                  'sonar_echo to subscribe')

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from sonar_tracking import process
 from sonar_tracking.cli.sonar_stack import StackError, command, load_stack, move
 
 pytestmark = pytest.mark.ros
@@ -26,7 +27,8 @@ def write(tmp_path, text):
 
 def start(path, *args):
     return subprocess.Popen([sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', '--config', str(path), *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            preexec_fn=process.child_dies_with_parent())
 
 
 def alive(pid):
@@ -341,7 +343,8 @@ def test_two_harbour_stacks_in_namespaces_track_their_own_targets_without_cross_
         [sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', 'harbour', '--namespace', ns,
          '--set', f'seaking_sim.scenario={s}', '--set', 'seaking_sim.duration=30',
          '--set', 'seaking_sim.wait_for_subscribers=2'],
-        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+        preexec_fn=process.child_dies_with_parent())
         for ns, s in scenario.items()}
     try:
         def publishers(topic):

@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 import sonar_tracking.msgs as ma
+from sonar_tracking import process
 from sonar_tracking.core.sector import SectorGeometry
 
 OUT = Path(__file__).resolve().parents[2] / 'out' / 'test_sonar_view'
@@ -245,8 +246,8 @@ class Chromium:
         def fds() -> None:
             os.dup2(to_child, 3)
             os.dup2(from_child, 4)
-        self.proc = subprocess.Popen(args, pass_fds=(3, 4), preexec_fn=fds, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.DEVNULL, start_new_session=True)
+        self.proc = subprocess.Popen(args, pass_fds=(3, 4), preexec_fn=process.child_dies_with_parent(then=fds),
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
         os.close(to_child)
         os.close(from_child)
         self._id, self._buf, self.events = 0, b'', []
@@ -342,7 +343,8 @@ def test_the_browser_shows_a_running_stack(tmp_path):
     stack = subprocess.Popen(
         [sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', '--config', str(tmp_path / 'stack.yaml'),
          '--view', f'--grpc-port {grpc} --web-port {web} --save {rrd} --qos reliable'],
-        stdout=log, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+        stdout=log, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+        preexec_fn=process.child_dies_with_parent())
     browser = None
     try:
         url = wait_for_line(stack, OUT / 'stack.log', r'\[sonar_view\] view: (\S+)').group(1)

@@ -17,6 +17,7 @@ import pytest
 import yaml
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from sonar_tracking import process
 from sonar_tracking.io.bags import TruncatedBagWarning, bag_topics, read_bag
 
 pytestmark = pytest.mark.ros
@@ -24,9 +25,10 @@ pytestmark = pytest.mark.ros
 SIM_TOPICS = ['/sonar/sector', '/sonar/sector_info', '/sonar/truth', '/platform/odometry']
 
 
-def tool(module, *args, **kwargs):
+def tool(module, *args, preexec_fn=None, **kwargs):
     return subprocess.Popen([sys.executable, '-m', f'sonar_tracking.cli.{module}', *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, **kwargs)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=process.child_dies_with_parent(then=preexec_fn), **kwargs)
 
 
 def stop(proc, timeout=15):

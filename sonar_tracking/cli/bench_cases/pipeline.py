@@ -16,6 +16,7 @@ import time
 
 import numpy as np
 
+from sonar_tracking import process
 from sonar_tracking.cli.bench import Case, register
 
 
@@ -37,7 +38,8 @@ def _latency(n_sectors: int = 100, rate_hz: float = 10.0):
         msgs = [(ma.array_to_image(s.amplitudes, stamp_ns=int(s.stamp * 1e9), frame_id='sonar'),
                  ma.geometry_to_scan(s.geometry, stamp_ns=int(s.stamp * 1e9), frame_id='sonar')) for s in sectors]
         procs = [subprocess.Popen([sys.executable, '-m', f'sonar_tracking.nodes.{name}', '--ros-args', *args],
-                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+                                  stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+                                  preexec_fn=process.child_dies_with_parent())
                  for name, args in (('active_detector', ['--params-file', str(config_path('active_detector.yaml'))]),
                                     ('imm_ipda_tracker', ['--params-file', str(config_path('imm_ipda.yaml'))]))]
         rclpy.init()

@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from sonar_tracking import process
 from sonar_tracking.cli.bench import Case, register
 
 
@@ -74,7 +75,8 @@ def _node_rate0():
         child = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.nodes.seaking_sim', '--ros-args',
                                   '-p', 'scenario:=scenario2', '-p', 'rate:=0.0', '-p', 'wait_for_subscribers:=1',
                                   '-p', 'shutdown_when_done:=true'], start_new_session=True,
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                 preexec_fn=process.child_dies_with_parent())
         try:
             deadline = time.monotonic() + 120
             while (child.poll() is None or len(stamps) < 100) and time.monotonic() < deadline:
