@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import bisect
 import math
+from typing import cast
 
 __all__ = ['PoseBuffer', 'MAX_POSITION', 'ADDED', 'HELD', 'JUMPED']
 
@@ -72,16 +73,21 @@ class PoseBuffer:
             self._insert(t, x, y, yaw)
             return ADDED
         if self.held is not None and abs(t - self.held[0]) <= self.max_gap:
-            held, self.held = self.held, None
-            if held[0] < self._t[0]:      # a jump back: a new recording replaces the old one
-                self.clear()
-            self._insert(*held)
+            self._confirm_held()
             self._insert(t, x, y, yaw)
             return JUMPED
         if self.held is not None:
             self.discarded += 1
         self.held = (t, x, y, yaw)
         return HELD
+
+    def _confirm_held(self) -> None:
+        """Buffer the held pose: its jump is confirmed (a jump back replaces the buffer: a new recording)."""
+        held = cast(tuple[float, float, float, float], self.held)
+        self.held = None
+        if self._t and held[0] < self._t[0]:
+            self.clear()
+        self._insert(*held)
 
     def _near_stream(self, t: float) -> bool:
         return self._t[-1] - self.max_back <= t <= self._t[-1] + self.max_gap
@@ -106,10 +112,7 @@ class PoseBuffer:
                 self.clear()
         if self.held is not None and abs(self.held[0] - t) <= self.max_extrapolation and (
                 not self._t or not self._near_stream(t)):
-            held, self.held = self.held, None
-            if self._t and held[0] < self._t[0]:
-                self.clear()
-            self._insert(*held)
+            self._confirm_held()
         if not self._t:
             return None
         i = bisect.bisect_left(self._t, t)

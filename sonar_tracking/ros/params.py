@@ -64,7 +64,7 @@ def _to_declared_type(s: Setting, value: Any) -> Any:
 def start_value(node: Node, s: Setting, default: Any) -> Any:
     """The start-up value of setting ``s``: its override (``-p``, a parameter file) if valid, else
     ``default``, with the reason in the log."""
-    overrides = getattr(node, '_parameter_overrides', {})  # rclpy has no public accessor for these
+    overrides = _overrides(node)
     if s.name not in overrides:
         return default
     given = _to_declared_type(s, overrides[s.name].value)
@@ -76,11 +76,15 @@ def start_value(node: Node, s: Setting, default: Any) -> Any:
     return _ros_value(given)
 
 
+def _overrides(node: Node) -> dict[str, Parameter]:
+    """The start-up values given to ``node`` (``-p``, its parameter files' sections)."""
+    return getattr(node, '_parameter_overrides', {})  # rclpy has no public accessor for these
+
+
 def unknown_overrides(node: Node) -> list[str]:
     """Names given to ``node`` at start-up (``-p``, the sections of its parameter files that apply to
     it) that it has not declared: a misspelt name, or one of another node."""
-    overrides = getattr(node, '_parameter_overrides', {})  # rclpy has no public accessor for these
-    return sorted(n for n in overrides if not node.has_parameter(n) and not n.startswith('qos_overrides.'))
+    return sorted(n for n in _overrides(node) if not node.has_parameter(n) and not n.startswith('qos_overrides.'))
 
 
 def warn_unknown_overrides(node: Node) -> None:

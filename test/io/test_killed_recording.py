@@ -14,6 +14,7 @@ import warnings
 import pytest
 import yaml
 
+from sonar_tracking import process
 from sonar_tracking.cli.sonar_import import main as sonar_import
 from sonar_tracking.io.bags import TruncatedBagWarning, bag_topics, read_bag
 
@@ -187,7 +188,14 @@ def recorder(bag, storage, topic, *extra):
     env = {**os.environ, 'FASTDDS_BUILTIN_TRANSPORTS': 'UDPv4'}   # see test_bags: SHM after SIGKILL
     return subprocess.Popen([sys.executable, '-m', 'sonar_tracking.cli.bag_record', '-o', str(bag), '--storage',
                              storage, *extra, topic], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, env=env)
+                            start_new_session=True, env=env, preexec_fn=process.child_dies_with_parent())
+
+
+def kill(rec) -> None:
+    """SIGKILL the recorder's process group (if it still runs) and collect it."""
+    if rec.poll() is None:
+        os.killpg(rec.pid, signal.SIGKILL)
+    rec.communicate(timeout=10)
 
 
 def wait_line(proc, pattern, ros, timeout=30.0):
@@ -227,9 +235,7 @@ def test_bag_record_killed_after_a_flush_it_completed_keeps_everything_before(tm
         rec.communicate(timeout=10)
     finally:
         source.close()
-        if rec.poll() is None:
-            os.killpg(rec.pid, signal.SIGKILL)
-            rec.communicate(timeout=10)
+        kill(rec)
     from rosbags.rosbag2 import Reader
     with Reader(bag) as reader:
         got = numbers_of(d for _, _, d in reader.messages())
@@ -262,13 +268,10 @@ def test_bag_record_killed_before_its_first_flush_opens_everywhere(tmp_path, ros
     rec = recorder(bag, storage, topic, '--flush-interval', '3600')
     try:
         wait_line(rec, f'recording {topic}', ros)
-        os.killpg(rec.pid, signal.SIGKILL)
-        rec.communicate(timeout=10)
+        kill(rec)
     finally:
         source.close()
-        if rec.poll() is None:
-            os.killpg(rec.pid, signal.SIGKILL)
-            rec.communicate(timeout=10)
+        kill(rec)
     from rosbags.rosbag2 import Reader
     with Reader(bag) as reader:
         assert list(reader.messages()) == []
