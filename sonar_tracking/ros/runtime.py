@@ -2,7 +2,11 @@
 
 **Stopping a node.** SIGINT (Ctrl-C) and SIGTERM stop :func:`run_node` between two callbacks, and
 everything the stop does happens in the main thread, in order: the running callback finishes, the
-executor shuts down, the node is destroyed, ROS is shut down. rclpy's own signal handling is not
+executor shuts down, the node is destroyed, ROS is shut down. A signal while the node is being built
+(its kernel warm-up included) stops it as soon as the build is done: an exception raised at an
+arbitrary point of the build would land in third-party code (numba's compiler swallows it in a
+finaliser and may keep its lock), and the node then neither stops nor works. A second signal ends
+the process at once, in any phase. rclpy's own signal handling is not
 installed: it shuts ROS down from a thread of its own at the signal (rclpy ``signal_handler.cpp``:
 trigger every executor's SIGINT guard condition, then ``rcl_shutdown`` every context), while the
 main thread, interrupted by the KeyboardInterrupt of the same signal, tears the executor and the
@@ -85,24 +89,23 @@ def private_domain() -> int:
 
 
 class _Stop:
-    """SIGINT and SIGTERM in :func:`run_node`. While the node is built a signal abandons the build
-    (KeyboardInterrupt); while it spins a signal only sets :attr:`requested`, so no callback is cut
-    short; from :meth:`tear_down` on a second signal ends the process at once (the kernel's default
-    action), for a teardown that hangs."""
+    """SIGINT and SIGTERM in :func:`run_node`: the first signal only sets :attr:`requested`, which
+    the caller reads between steps (no exception is raised into running code); a second one ends
+    the process at once (the kernel's default action), for a build or teardown that hangs."""
 
     def __init__(self) -> None:
         self.requested = False
-        self.spinning = False
         for signum in STOP_SIGNALS:
             signal.signal(signum, self._on_signal)
 
     def _on_signal(self, signum: int, frame: FrameType | None) -> None:
-        first, self.requested = not self.requested, True
-        if first and not self.spinning:
-            raise KeyboardInterrupt
+        if self.requested:
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        self.requested = True
 
     def tear_down(self) -> None:
-        self.spinning = False
         for signum in STOP_SIGNALS:
             signal.signal(signum, signal.SIG_DFL)
 
@@ -156,18 +159,15 @@ def run_node(factory: Callable[[], rclpy.node.Node], args: list[str] | None = No
         name = Path((args or sys.argv or ['node'])[0]).stem or 'node'
         print(f'{name}: cannot start: {exc}', file=sys.stderr, flush=True)
         return EXIT_START_ERROR
-    except KeyboardInterrupt:
-        rclpy.try_shutdown()
-        return 0
     executor = SingleThreadedExecutor()
     node = None
     try:
-        node = factory()
-        executor.add_node(node)
-        stop.spinning = True
+        if not stop.requested:
+            node = factory()
+            executor.add_node(node)
         while not stop.requested and executor.context.ok():
             executor.spin_once(timeout_sec=_STOP_POLL_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except ExternalShutdownException:
         pass
     except Exception:
         # The factory stopped by a shutdown of the context under it (by its own code, or a caller

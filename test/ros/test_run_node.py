@@ -184,3 +184,48 @@ def test_a_parent_gone_before_the_watch_ends_the_node_at_once():
     env['SONAR_TRACKING_PARENT_PID'] = str(os.getpid())     # the real parent: it runs on
     r = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == 0 and 'running' in r.stdout, r.stderr
+
+
+# A build that is interrupted where third-party code runs a finaliser (as numba's compiler does while
+# it warms the kernels up): an exception raised there is swallowed with a traceback.
+BUILD = '''
+import sys
+import rclpy
+from sonar_tracking.ros.runtime import run_node
+
+class Finaliser:
+    def __del__(self):
+        print('building', flush=True)
+        sys.stdin.readline()          # returns once the test has sent the signal(s)
+
+def factory():
+    node = rclpy.create_node('run_node_build_probe')
+    Finaliser()
+    print('built', flush=True)
+    node.create_timer(0.0, lambda: print('spun', flush=True))
+    return node
+
+raise SystemExit(run_node(factory, []))
+'''
+
+
+@pytest.mark.parametrize('signals', [[signal.SIGINT], [signal.SIGINT, signal.SIGTERM]])
+def test_a_signal_during_the_build_stops_the_node_once_built_and_a_second_ends_it(signals):
+    """One signal while the node is built raises nothing into the build: the build completes, the
+    node never spins and exits 0. A second signal ends the process at once with that signal."""
+    proc = subprocess.Popen([sys.executable, '-c', BUILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == 'building\n'
+        for signum in signals:
+            proc.send_signal(signum)
+        out, err = proc.communicate('go\n', timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    if len(signals) == 1:
+        assert proc.returncode == 0 and 'Traceback' not in err, err
+        assert 'built' in out and 'spun' not in out, out
+    else:
+        assert proc.returncode == -signals[-1], (proc.returncode, err)
