@@ -15,7 +15,8 @@ how. Our design, each choice with its reason:
    range: the median over all buffered beams of the bin (robust to the few cells a target
    occupies), smoothed over ``background_bins`` bins, divided by ln 2 (the median of fully
    developed, exponential speckle of mean 1). Exact zeros are no data and stay out of the median
-   (real imaging sonars report most of a bin as 0 in open water); see :func:`background_level`.
+   (real imaging sonars report most of a bin as 0 in open water). This is the package's one
+   local-background rule in its per-range layout: :func:`sonar_tracking.core.background.range_profile`.
    Intensity changes with range (spreading losses the time-varying gain does not quite undo,
    receiver noise growing far out), so thresholds in units of the local background keep one
    false-alarm rate at every range.
@@ -52,14 +53,11 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from scipy.ndimage import median_filter
 
+from sonar_tracking.core.background import range_profile
 from sonar_tracking.core.config import Config, ConfigError, setting
 from sonar_tracking.core.sector import SectorGeometry
 
-__all__ = ['FilterConfig', 'PolarSweepFilter', 'FilteredBlock', 'trimmed_mean', 'background_level',
-           'median_blur']
-
-_LN2 = math.log(2.0)
-
+__all__ = ['FilterConfig', 'PolarSweepFilter', 'FilteredBlock', 'trimmed_mean', 'median_blur']
 
 @dataclass(frozen=True)
 class FilterConfig(Config):
@@ -133,39 +131,6 @@ def trimmed_mean(values: np.ndarray, window_bins: int, window_beams: int, trim: 
     return np.where(n > 0, out, np.nan).astype(np.float32)
 
 
-def background_level(raw: np.ndarray, background_bins: int) -> np.ndarray:
-    """Mean background intensity per range bin of beams ``raw`` (bins x beams): the median over beams,
-    smoothed over ``background_bins`` bins, divided by ln 2 (exponential speckle). Always > 0.
-
-    Exact zeros are "no data" (below the sensor's gain floor, blanked, or beyond its range), not
-    background: imaging sonars report 45-73 % of a range bin as exactly 0 in open water, and a median
-    over them would be 0 and break the normalisation. So the median is taken over the non-zero cells
-    of each bin; a bin with fewer than ``max(3, 10 %)`` of its beams non-zero takes the level of the
-    nearest bins that have enough (interpolated between them), and if none has, the median of all
-    non-zero cells (1 if there are none). Levels are floored at the smallest positive level, so no
-    bin divides by zero. Without zeros this is the plain per-bin median.
-    """
-    v = np.asarray(raw)
-    data = np.isfinite(v) & (v > 0)
-    if data.all():
-        prof = np.median(v, axis=1)
-    else:
-        prof = np.full(v.shape[0], np.nan, dtype=np.result_type(v.dtype, np.float32))
-        enough = data.sum(axis=1) >= max(3, math.ceil(0.1 * v.shape[1]))
-        if enough.any():
-            prof[enough] = np.nanmedian(np.where(data[enough], v[enough], np.nan), axis=1)
-            idx = np.arange(v.shape[0])
-            prof[~enough] = np.interp(idx[~enough], idx[enough], prof[enough])
-        else:
-            prof[:] = np.median(v[data]) if data.any() else _LN2
-    if background_bins > 1 and prof.size > 1:
-        prof = median_filter(prof, size=min(background_bins, 2 * prof.size - 1), mode='nearest')
-    level = prof / _LN2
-    positive = level[level > 0]
-    floor = positive.min() if positive.size else 1.0
-    return np.maximum(level, floor)
-
-
 @dataclass(frozen=True, eq=False)
 class FilteredBlock:
     """Filtered beams that share one pose: values (bins x beams, float32), their geometry and pose."""
@@ -224,7 +189,7 @@ class PolarSweepFilter:
             # The median over at most ~100 beams per bin is as good a level and much cheaper.
             beams = np.flatnonzero(self._has)
             beams = beams[::max(1, beams.size // 100)]
-            self.level = background_level(self._raw[:, beams], c.background_bins).astype(np.float32)
+            self.level = range_profile(self._raw[:, beams], c.background_bins).astype(np.float32)
         else:
             self.level = np.ones(g.n_bins, np.float32)
         if k + 2 * hw >= n:  # one sector covers the turn: filter the whole ring with wrap-around

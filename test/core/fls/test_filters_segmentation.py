@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from sonar_tracking.core.background import range_profile as background_level
 from sonar_tracking.core.config import ConfigError
 from sonar_tracking.core.fls import (
     FilterConfig,
@@ -19,7 +20,6 @@ from sonar_tracking.core.fls import (
     threshold_components,
     trimmed_mean,
 )
-from sonar_tracking.core.fls.filters import background_level
 from sonar_tracking.core.sector import SectorGeometry
 
 

@@ -12,9 +12,9 @@ import math
 import numpy as np
 import pytest
 
+from sonar_tracking.core.background import range_profile as background_level
 from sonar_tracking.core.config import ConfigError
 from sonar_tracking.core.fls import FlsConfig, FlsInputError, FlsProcessor
-from sonar_tracking.core.fls.filters import background_level
 from sonar_tracking.core.intensity import decode
 from sonar_tracking.core.sector import SectorGeometry
 

@@ -1,0 +1,199 @@
+"""CFAR detection on the polar image of an imaging sonar: cell-averaging, greatest-of, ordered-statistic.
+
+A cell of echo intensity ``P`` (linear power: the square of the decoded amplitude) is a detection
+when ``P > alpha * Z``, where ``Z`` is the level of its training cells (the package's local-background
+rule, :mod:`sonar_tracking.core.background`: guard and training cells in bins and beams, a stride,
+no-data cells left out) and ``alpha`` the scale. For clutter of exponential intensity (fully
+developed speckle, Rayleigh amplitude) and ``N`` independent training cells the false-alarm
+probability is a function of ``alpha`` alone, whatever the clutter level (Gandhi and Kassam 1988;
+Rohling 1983):
+
+* ``ca``, ``Z`` the mean of the ``N`` cells:  ``P_fa = (1 + alpha / N)^(-N)``;
+* ``go``, ``Z`` the greater of the means of the nearer and the farther half (``n = N / 2`` each):
+  ``P_fa = 2 (1 + alpha/n)^(-n) - 2 sum_{k=0}^{n-1} C(n-1+k, k) (2 + alpha/n)^(-(n+k))``;
+* ``os``, ``Z`` the ``k``-th smallest of the ``N`` cells:
+  ``P_fa = prod_{i=0}^{k-1} (N - i) / (N - i + alpha)``.
+
+:func:`design_scale` inverts these for a design ``P_fa``. A cell near the sector's edge or among
+no-data cells has fewer training cells; it is tested with the scale of its own count, so the design
+``P_fa`` holds at every cell (``go`` with unequal halves takes the scale of the smaller half, a
+slightly lower ``P_fa``; with one half empty it is ``ca`` on the other). A cell with fewer than
+``min_train`` of the nominal training cells measured is not tested.
+
+The detector thresholds the *CFAR-normalised* image ``q = P / (Z c)``, where ``c`` is the cell's
+scale over the nominal one at the design ``P_fa`` (:meth:`Cfar.normalise`): ``q > alpha_0`` is the
+test above at every cell, and extremum-seeking control moves the one scale ``alpha`` (the
+detector's threshold) from ``alpha_0`` to hold a desired false-detection density where the clutter
+is not exponential (K-distributed clutter gives cell-averaging CFAR many more false alarms than
+designed).
+
+Correlated cells: an imaging sonar forms more beams than its beam width resolves, and a pulse spans
+several fine range bins, so neighbouring cells are correlated. The formulas hold for independent
+training cells: set the strides to about one resolution cell (beam width over beam spacing, pulse
+length over bin size) and the guard to cover the main lobe and the pulse.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+from scipy.special import gammaln
+
+from sonar_tracking.core.background import Window, window_order, window_sums
+from sonar_tracking.core.config import Config, ConfigError, setting
+
+__all__ = ['CFAR_METHODS', 'CfarConfig', 'Cfar', 'pfa', 'design_scale']
+
+CFAR_METHODS = ('ca', 'go', 'os')
+
+
+def pfa(method: str, n: int, alpha: float, rank: int = 0) -> float:
+    """False-alarm probability of ``method`` with ``n`` training cells at scale ``alpha`` (module
+    docstring); ``rank`` is OS's ``k``; ``go`` takes ``n`` as the cells of one half."""
+    if alpha < 0:
+        raise ValueError(f'alpha = {alpha} must be >= 0')
+    if method == 'ca':
+        return math.exp(-n * math.log1p(alpha / n))
+    if method == 'go':
+        a = alpha / n
+        k = np.arange(n)
+        log_terms = gammaln(n + k) - gammaln(k + 1) - gammaln(n) - (n + k) * math.log(2.0 + a)
+        so = 2.0 * float(np.exp(log_terms).sum())
+        return max(2.0 * math.exp(-n * math.log1p(a)) - so, 0.0)
+    if method == 'os':
+        if not 1 <= rank <= n:
+            raise ValueError(f'OS rank {rank} must lie in 1..{n}')
+        i = np.arange(rank)
+        return float(np.exp(np.sum(np.log(n - i) - np.log(n - i + alpha))))
+    raise ValueError(f'unknown CFAR method {method!r}; known: {CFAR_METHODS}')
+
+
+def design_scale(method: str, n: int, target: float, rank: int = 0) -> float:
+    """The scale ``alpha`` at which ``method`` with ``n`` training cells (``go``: per half; ``os``:
+    rank ``rank``) has false-alarm probability ``target``."""
+    if not 0 < target < 1:
+        raise ValueError(f'design P_fa = {target} must lie in (0, 1)')
+    if n < 1:
+        raise ValueError('CFAR needs at least one training cell')
+
+    def gap(log_alpha: float) -> float:
+        return math.log(max(pfa(method, n, math.exp(log_alpha), rank), 1e-300)) - math.log(target)
+    hi = 1.0
+    while gap(hi) > 0:
+        hi += 2.0
+        if hi > 60:
+            raise ValueError(f'{method} with {n} training cells cannot reach P_fa = {target}')
+    return math.exp(brentq(gap, -30.0, hi, xtol=1e-12, rtol=1e-12))
+
+
+@dataclass(frozen=True)
+class CfarConfig(Config):
+    """Window and design false-alarm probability of CFAR (bins: range bins; beams: image columns)."""
+
+    pfa: float = setting(1e-4, 'design false-alarm probability per cell (sets the initial scale alpha_0)',
+                         low=1e-12, high=0.5)
+    guard_bins: int = setting(2, 'guard cells on each side of the cell under test, in range bins', low=0, high=200)
+    guard_beams: int = setting(2, 'guard cells on each side, in beams', low=0, high=200)
+    reach_bins: int = setting(12, 'training cells reach this many range bins from the cell under test', low=0,
+                              high=400)
+    reach_beams: int = setting(12, 'training cells reach this many beams from the cell under test', low=0, high=400)
+    stride_bins: int = setting(2, 'training cells every this many range bins (about the pulse length in bins)',
+                               low=1, high=64)
+    stride_beams: int = setting(2, 'training cells every this many beams (about the beam width over the beam '
+                                'spacing)', low=1, high=64)
+    os_rank: float = setting(0.75, 'os: the order statistic as a fraction of the training cells (k = round(fN))',
+                             low=0.0, low_open=True, high=1.0)
+    min_train: float = setting(0.5, 'a cell is tested only when at least this share of its nominal training cells '
+                               'is measured', low=0.0, low_open=True, high=1.0)
+
+    def validate(self) -> None:
+        try:
+            w = self.window()
+        except ValueError as exc:
+            raise ConfigError(f'cfar window: {exc}') from None
+        if w.size < 4:
+            raise ConfigError(f'the cfar window holds {w.size} training cells; widen reach_bins/reach_beams '
+                              '(at least 4)')
+
+    def window(self) -> Window:
+        """The training window these settings describe."""
+        return Window(self.guard_bins, self.guard_beams, self.reach_bins, self.reach_beams, self.stride_bins,
+                      self.stride_beams)
+
+
+class Cfar:
+    """CFAR of one method and window: the design scale and the CFAR-normalised image."""
+
+    def __init__(self, method: str, config: CfarConfig) -> None:
+        if method not in CFAR_METHODS:
+            raise ConfigError(f'unknown CFAR method {method!r}; known: {CFAR_METHODS}')
+        self.method = method
+        self.config = config
+        self.window = config.window()
+        n = self.window.size
+        self.rank = max(1, min(n, round(config.os_rank * n)))
+        self.min_count = max(1, math.ceil(config.min_train * n))
+        per = n // 2 if method == 'go' else n
+        self.alpha0 = design_scale(method, per, config.pfa, self.rank)
+        self._ratio = self._ratios()
+        self._go_table = self._go_ratios() if method == 'go' else self._ratio
+
+    @property
+    def training_cells(self) -> int:
+        """Training cells of a cell away from the edges."""
+        return self.window.size
+
+    def _ratios(self) -> np.ndarray:
+        """Scale at the design P_fa for each possible count, over the nominal ``alpha0`` (inf where the
+        cell is not tested). ``ca``/``go``: indexed by measured cells (``go``: of the smaller half,
+        or of the whole window for ``ca`` on one half); ``os``: by the number of unmeasured cells."""
+        c, n = self.config, self.window.size
+        ratio = np.full(n + 1, np.inf)
+        for m in range(n + 1):
+            if self.method == 'os':
+                valid, k = n - m, self.rank - m
+                if valid >= self.min_count and k >= 1:
+                    ratio[m] = design_scale('os', valid, c.pfa, k) / self.alpha0
+            elif m >= 1 and (self.method == 'go' or m >= self.min_count):
+                ratio[m] = design_scale('ca', m, c.pfa) / self.alpha0
+        return ratio
+
+    def level(self, power: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The training level ``Z`` of every cell and its scale ratio ``c`` (inf: not tested)."""
+        if self.method == 'os':
+            stat, missing = window_order(power, self.window, self.rank)
+            return stat, self._ratio[missing.astype(np.int64)]
+        sums = window_sums(power, self.window, halves=self.method == 'go')
+        count = sums.count.astype(np.int64)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            if self.method == 'ca':
+                return sums.total / np.maximum(count, 1), self._ratio[count]
+            n1, n2 = sums.near_count.astype(np.int64), sums.far_count.astype(np.int64)
+            m1 = np.where(n1 > 0, sums.near_total / np.maximum(n1, 1), 0.0)
+            m2 = np.where(n2 > 0, sums.far_total / np.maximum(n2, 1), 0.0)
+        both = (n1 > 0) & (n2 > 0)
+        ratio = np.where(both, self._go_table[np.minimum(n1, n2)], self._ratio[np.maximum(n1, n2)])
+        ratio = np.where(count >= self.min_count, ratio, np.inf)
+        return np.maximum(m1, m2), ratio
+
+    def _go_ratios(self) -> np.ndarray:
+        """GO scale over ``alpha0`` by the count of the smaller half (both halves measured)."""
+        n = self.window.size // 2
+        table = np.full(self.window.size + 1, np.inf)
+        for m in range(1, n + 1):
+            table[m] = design_scale('go', m, self.config.pfa) / self.alpha0
+        return table
+
+    def normalise(self, power: np.ndarray) -> np.ndarray:
+        """The CFAR-normalised image ``q = P / (Z c)`` (float32; 0 where a cell is not tested or has
+        no measurement). ``q > alpha0`` is the design test at every cell; a threshold ``alpha`` on ``q``
+        is that test at another scale."""
+        p = np.asarray(power, dtype=np.float64)
+        z, ratio = self.level(p)
+        with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
+            denom = z * ratio
+            q = np.where((denom > 0) & np.isfinite(denom), p / denom, 0.0)
+        q[~np.isfinite(q)] = 0.0
+        return q.astype(np.float32)
