@@ -4,7 +4,9 @@ Subscribes ``sonar/sector`` + ``sonar/sector_info`` (paired by stamp), ``platfor
 (sensor pose; without it the ``sonar_pose`` parameter) and ``tracks`` (for
 ``esc.density_source: best_track``). Publishes ``detections``, ``detector/threshold`` (the
 threshold applied to the scan just processed; depth 1, transient local, so a late reader gets the
-current value), ``detector/clutter_density`` (the density ESC saw) and ``diagnostics`` (with the
+current value; with a CFAR ``threshold.method`` it is the CFAR scale alpha, dimensionless: a cell is
+a detection where its intensity exceeds alpha times the level of its training cells),
+``detector/clutter_density`` (the density ESC saw) and ``diagnostics`` (with the
 threshold and the stamp of the scan it was applied to). Services ``~/esc/enable`` (SetBool; sets
 the ``esc.enabled`` parameter, so both always agree) and ``~/esc/reset`` (Trigger; the response
 message is the state as JSON: threshold, clutter density, scan count after the reset, and under
@@ -12,7 +14,7 @@ message is the state as JSON: threshold, clutter density, scan count after the r
 
 Sector input (pairing, bad messages, the time rule, the pose from odometry) is
 :class:`~sonar_tracking.ros.sector_input.SectorInput`; a jump back in time restarts the detector
-from ``threshold.initial``.
+from ``threshold.initial`` (CFAR: from the scale of ``cfar.pfa``).
 """
 from __future__ import annotations
 
@@ -86,7 +88,10 @@ class ActiveDetectorNode(SonarNode):
         self.create_service(Trigger, '~/esc/reset', self._srv_reset)
         self.pub_threshold.publish(Float64(data=self.detector.threshold))
         esc = 'on' if self.detector.enabled else 'off'
-        self.get_logger().info(f'threshold {self.detector.threshold:g}, ESC {esc}, '
+        cfar = self.detector.cfar
+        test = '' if cfar is None else (f'{cfar.method.upper()}-CFAR (P_fa {cfar.config.pfa:g} per cell, '
+                                        f'{cfar.training_cells} training cells), scale ')
+        self.get_logger().info(f'{test}threshold {self.detector.threshold:g}, ESC {esc}, '
                                f'desired clutter density {self.detector.desired_density:.3g} /m^2')
 
     def on_change(self, old: DetectorNodeConfig, new: DetectorNodeConfig) -> None:

@@ -8,11 +8,16 @@ For each sector (one scan of the harbour sonar):
    amplitude as it is;
 1. every cell above the threshold ``tau`` becomes a detection at its cell centre, or (``cells.grouping
    = connected``, and within ``cells.merge_bins`` x ``merge_beams``) every group of cells one
-   detection at its amplitude-weighted centroid (:mod:`.cells`);
+   detection at its amplitude-weighted centroid (:mod:`.cells`).
+   With ``threshold.method`` ``ca``, ``go`` or ``os`` (imaging sonars) the test is CFAR instead
+   (:mod:`.cfar`): the intensity (amplitude squared) of each cell over the level of its training
+   cells, against the scale ``alpha``, which then is the threshold ESC moves (from the design value
+   of ``cfar.pfa``); groups and centroids are taken on that normalised image, a detection's
+   amplitude is its largest cell amplitude;
 2. echoes of static structure are dropped (``structure``, :mod:`sonar_tracking.core.structure`):
    connected echoes that are too long, too wide, too large or elongated, and those lying on cells
    that echo persistently (a background learnt online from every scan's above-threshold cells);
-3. at most ``cells.max_detections`` remain, the strongest (peak amplitude); how many were cut is in
+3. at most ``cells.max_detections`` remain, the strongest (peak amplitude, or peak CFAR ratio); how many were cut is in
    the :class:`ScanResult`;
 4. range and bearing are converted to the world frame with ``R = J W J^T`` (eqs. 8-10) or the
    unbiased conversion of ref. [23] (:mod:`.conversion`). ``W`` uses ``sigma_r`` and
@@ -49,6 +54,7 @@ import numpy as np
 
 from sonar_tracking.core.config import Config, ConfigError, setting
 from sonar_tracking.core.detection.cells import CellDetections, threshold_cells
+from sonar_tracking.core.detection.cfar import CFAR_METHODS, Cfar, CfarConfig
 from sonar_tracking.core.detection.conversion import convert_measurements
 from sonar_tracking.core.detection.esc import ExtremumSeekingController
 from sonar_tracking.core.detection.scmde import PolarWindow, scmde, sunflower
@@ -86,12 +92,17 @@ class DetectionInputError(ValueError):
 
 @dataclass(frozen=True)
 class ThresholdConfig(Config):
-    """Detection threshold on the echo amplitude."""
+    """Detection threshold: on the echo amplitude, or the scale of a CFAR test."""
 
-    initial: float = setting(3.0, 'initial threshold tau_0 (the fixed threshold when ESC is off)',
-                             low=0.0, low_open=True, high=1e6)
-    minimum: float = setting(0.5, 'lowest threshold ESC may set', low=0.0, low_open=True, high=1e6)
-    maximum: float = setting(30.0, 'highest threshold ESC may set', low=0.0, low_open=True, high=1e6)
+    method: str = setting('fixed', "'fixed': one threshold tau on the amplitude of every cell (ESC paper); 'ca', "
+                          "'go', 'os': CFAR on the intensity (cell-averaging, greatest-of, ordered-statistic; see "
+                          'cfar.*), the threshold is the CFAR scale alpha, starting from the design value of '
+                          'cfar.pfa', choices=('fixed',) + CFAR_METHODS)
+    initial: float = setting(3.0, 'initial threshold tau_0 (the fixed threshold when ESC is off); CFAR methods '
+                             'start from the scale of cfar.pfa instead', low=0.0, low_open=True, high=1e6)
+    minimum: float = setting(0.5, 'lowest threshold (or CFAR scale) ESC may set', low=0.0, low_open=True, high=1e6)
+    maximum: float = setting(30.0, 'highest threshold (or CFAR scale) ESC may set', low=0.0, low_open=True,
+                             high=1e6)
 
     def validate(self) -> None:
         if not self.minimum <= self.initial <= self.maximum:
@@ -154,6 +165,16 @@ class DetectorConfig(Config):
     scmde: ScmdeConfig = dataclasses.field(default_factory=ScmdeConfig)
     esc: EscConfig = dataclasses.field(default_factory=EscConfig)
     structure: StructureConfig = dataclasses.field(default_factory=StructureConfig)
+    cfar: CfarConfig = dataclasses.field(default_factory=CfarConfig)
+
+    def validate(self) -> None:
+        t = self.threshold
+        if t.method == 'fixed':
+            return
+        alpha0 = Cfar(t.method, self.cfar).alpha0
+        if not t.minimum <= alpha0 <= t.maximum:
+            raise ConfigError(f'cfar.pfa = {self.cfar.pfa:g} gives {t.method} CFAR the scale {alpha0:.4g}, outside '
+                              f'threshold.minimum .. threshold.maximum = {t.minimum:g} .. {t.maximum:g}')
 
 
 @dataclass(frozen=True, eq=False)
@@ -190,7 +211,9 @@ class ActiveDetector:
         self.config = config
         self.desired_density = float(rho_d)
         t, e = config.threshold, config.esc
-        self.esc = ExtremumSeekingController(self.desired_density, t.initial, t.minimum, t.maximum,
+        self.cfar = None if t.method == 'fixed' else Cfar(t.method, config.cfar)
+        tau0 = t.initial if self.cfar is None else self.cfar.alpha0
+        self.esc = ExtremumSeekingController(self.desired_density, tau0, t.minimum, t.maximum,
                                              e.dither_amplitude, e.dither_decay, e.gain)
         self._enabled = e.enabled
         self.background = SectorBackground(config.structure)
@@ -273,8 +296,11 @@ class ActiveDetector:
             a = a.astype(raw.dtype, copy=False)  # tau is compared at the sensor's float precision
         t = self._time(stamp, geometry)
         tau = self.threshold
-        cells = threshold_cells(a, tau, cfg.cells.merge_bins, cfg.cells.merge_beams,
+        # CFAR tests the intensity against its training cells: the normalised image against the scale.
+        test = a if self.cfar is None else self.cfar.normalise(np.square(a, dtype=np.float32))
+        cells = threshold_cells(test, tau, cfg.cells.merge_bins, cfg.cells.merge_beams,
                                 cfg.cells.grouping == 'connected', echoes=cfg.structure.enabled)
+        peak = cells.amplitude if self.cfar is None else _group_peaks(a, cells)
         found = len(cells)
         keep = np.arange(found)
         if cfg.structure.enabled:
@@ -310,7 +336,7 @@ class ActiveDetector:
             self.esc.update(density)
         rec = np.zeros(len(keep), DETECTION_DTYPE)
         rec['x'], rec['y'] = xy[:, 0], xy[:, 1]
-        rec['range'], rec['bearing'], rec['amplitude'] = r, b, cells.amplitude[keep]
+        rec['range'], rec['bearing'], rec['amplitude'] = r, b, peak[keep]
         rec['clutter_density'] = rho
         rec['cov_xx'], rec['cov_xy'], rec['cov_yy'] = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
         held = self.warmup.holding(t, cfg.structure)    # ESC and the background learn; nothing goes out
@@ -366,6 +392,13 @@ class ActiveDetector:
                 near = (xy[:, 0] - focus_xy[0]) ** 2 + (xy[:, 1] - focus_xy[1]) ** 2 <= radius ** 2
                 return float(near.sum() / (math.pi * radius ** 2 * inside))
         return float(rho.mean()) if len(rho) else 0.0
+
+
+def _group_peaks(amplitudes: np.ndarray, cells: CellDetections) -> np.ndarray:
+    """The largest amplitude among each detection's cells (CFAR groups cells on the normalised image)."""
+    peak = np.zeros(len(cells))
+    np.maximum.at(peak, cells.cell_group, amplitudes[cells.cell_rows, cells.cell_cols].astype(float))
+    return peak
 
 
 def best_track_focus(tracks: np.ndarray) -> tuple[float, float] | None:

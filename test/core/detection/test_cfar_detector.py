@@ -1,0 +1,88 @@
+"""The active detector with a CFAR threshold method: the design false-alarm rate per cell, the
+scale as the threshold ESC moves, targets found where they are."""
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from sonar_tracking.core.config import ConfigError
+from sonar_tracking.core.detection import ActiveDetector, DetectorConfig
+from sonar_tracking.core.detection.cfar import Cfar
+from sonar_tracking.core.sector import SectorGeometry
+
+GEOMETRY = SectorGeometry(range_min=1.0, range_max=40.0, n_bins=200, angle_min=-0.6, angle_increment=1.2 / 255,
+                          n_beams=256)
+
+
+def _config(method: str, pfa: float = 1e-3, esc: bool = False) -> DetectorConfig:
+    base = DetectorConfig()
+    return DetectorConfig.from_flat({**base.flat(), 'threshold.method': method, 'cfar.pfa': pfa,
+                                     'esc.enabled': esc, 'cells.max_detections': 100_000})
+
+
+@pytest.mark.parametrize('method', ['ca', 'go'])
+def test_false_detections_per_frame_follow_the_design_pfa(method):
+    """Rayleigh amplitude (exponential intensity) at levels 20 dB apart from frame to frame: each cell
+    is a detection with the design probability; ESC off keeps the scale at its design value."""
+    rng = np.random.default_rng(21)
+    det = ActiveDetector(_config(method))
+    total = cells = 0
+    for k in range(30):
+        level = 10.0 ** (2 * (k % 3))
+        amplitude = np.sqrt(level * rng.standard_exponential(GEOMETRY.shape)).astype(np.float32)
+        result = det.process(amplitude, GEOMETRY, stamp=float(k))
+        assert result.threshold == pytest.approx(det.cfar.alpha0)
+        total += len(result.detections)
+        cells += int(np.count_nonzero(det.cfar.normalise(np.square(amplitude)) > 0))   # tested: not in corners
+    lo = stats.beta.ppf(0.005, total, cells - total + 1)
+    hi = stats.beta.ppf(0.995, total + 1, cells - total)
+    assert lo <= 1e-3 <= hi, (total, cells)
+
+
+def test_a_target_is_found_at_its_cell_with_its_amplitude():
+    rng = np.random.default_rng(22)
+    det = ActiveDetector(_config('ca', 1e-5))
+    amplitude = np.sqrt(rng.standard_exponential(GEOMETRY.shape)).astype(np.float32)
+    amplitude[120, 100] = 30.0          # intensity 900: about 30 dB over the clutter
+    result = det.process(amplitude, GEOMETRY, stamp=0.0)
+    d = result.detections[np.argmax(result.detections['amplitude'])]
+    assert d['amplitude'] == pytest.approx(30.0)
+    r = GEOMETRY.range_min + 120 * GEOMETRY.range_resolution
+    b = GEOMETRY.angle_min + 100 * GEOMETRY.angle_increment
+    assert d['range'] == pytest.approx(r) and d['bearing'] == pytest.approx(b)
+
+
+def test_esc_moves_the_scale_and_a_reset_returns_it_to_the_design_value():
+    rng = np.random.default_rng(23)
+    cfg = _config('ca', 1e-3, esc=True)
+    # Far more false detections than desired: ESC raises the scale.
+    cfg = DetectorConfig.from_flat({**cfg.flat(), 'esc.desired_clutter_density': 1e-4})
+    det = ActiveDetector(cfg)
+    alpha0 = det.threshold
+    for k in range(40):
+        amplitude = np.sqrt(rng.standard_exponential(GEOMETRY.shape)).astype(np.float32)
+        det.process(amplitude, GEOMETRY, stamp=float(k))
+    assert det.threshold > 1.2 * alpha0
+    det.reset()
+    assert det.threshold == pytest.approx(alpha0)
+
+
+def test_a_design_pfa_whose_scale_lies_outside_the_threshold_bounds_is_refused():
+    with pytest.raises(ConfigError, match=r'cfar\.pfa = 1e-12 .*threshold\.minimum'):
+        DetectorConfig.from_flat({**DetectorConfig().flat(), 'threshold.method': 'ca', 'cfar.pfa': 1e-12})
+    fixed = DetectorConfig.from_flat({**DetectorConfig().flat(), 'cfar.pfa': 1e-12})   # not used: accepted
+    assert fixed.threshold.method == 'fixed'
+
+
+def test_the_fixed_method_is_unchanged_by_the_cfar_settings():
+    rng = np.random.default_rng(24)
+    amplitude = rng.exponential(1.0, GEOMETRY.shape).astype(np.float32)
+    a = ActiveDetector(_config('fixed')).process(amplitude, GEOMETRY, stamp=0.0)
+    other = dataclasses.replace(_config('fixed'), cfar=dataclasses.replace(_config('fixed').cfar, reach_bins=20))
+    b = ActiveDetector(other).process(amplitude, GEOMETRY, stamp=0.0)
+    assert np.array_equal(a.detections, b.detections) and a.threshold == 3.0
+    assert math.isclose(Cfar('ca', _config('ca').cfar).alpha0, ActiveDetector(_config('ca')).threshold)
