@@ -10,6 +10,7 @@ from sonar_tracking.msgs.markers import covariance_ellipse, track_markers
 from sonar_tracking.msgs.odometry import odometry_to_pose, pose_to_odometry
 from sonar_tracking.msgs.pairing import GIVEN_UP, StampPairer
 from sonar_tracking.msgs.pointcloud import array_to_cloud, cloud_to_array, dtype_to_fields, fields_to_dtype
+from sonar_tracking.msgs.projected import PROJECTED_TYPE, sector_to_projected
 from sonar_tracking.msgs.records import (
                       DETECTION_DTYPE,
                       FEATURE_NAMES,
@@ -30,7 +31,7 @@ from sonar_tracking.msgs.stamps import header, header_ns, ns_to_stamp, stamp_to_
 from sonar_tracking.msgs.types import MessageTypes, RclpyTypes, RosbagsTypes, rclpy_types
 
 __all__ = [
-    'AdapterError',
+    'AdapterError', 'PROJECTED_TYPE', 'sector_to_projected',
     'ENCODING_DTYPES', 'image_to_array', 'array_to_image',
     'array_to_cloud', 'cloud_to_array', 'dtype_to_fields', 'fields_to_dtype',
     'DETECTION_DTYPE', 'TRACK_DTYPE', 'TRUTH_DTYPE', 'REGION_DTYPE', 'GPF_TRACK_DTYPE',

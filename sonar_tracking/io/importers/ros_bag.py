@@ -35,12 +35,11 @@ from sonar_tracking.io.importers.recording import (
     head_bearing,
 )
 from sonar_tracking.io.importers.sweeps import Ping
+from sonar_tracking.msgs.projected import IMAGE_DTYPES
 
 __all__ = ['BagRecording', 'classify', 'projected_to_sector', 'ROLES']
 
 ROLES = ('scanline', 'echo', 'projected', 'odometry')
-_IMAGE_DTYPES = {0: np.uint8, 1: np.int8, 2: np.uint16, 3: np.int16, 4: np.uint32, 5: np.int32, 6: np.uint64,
-                 7: np.int64, 8: np.float32, 9: np.float64}
 
 
 def classify(typestore: Any, msgtype: str) -> str:
@@ -335,7 +334,7 @@ def projected_to_sector(msg: Any, options: ProjectedOptions, scan_time: float = 
     if n == 0 or m == 0:
         raise ValueError(f'image has {n} beams and {m} ranges')
     img = msg.image
-    dtype = _IMAGE_DTYPES.get(int(img.dtype))
+    dtype = IMAGE_DTYPES.get(int(img.dtype))
     if dtype is None:
         raise ValueError(f'image dtype code {int(img.dtype)} is not one of SonarImageData\'s 0..9')
     dt = np.dtype(dtype).newbyteorder('>' if img.is_bigendian else '<')
