@@ -1,15 +1,18 @@
-"""``seaking_sim``: the simulated scanning sonar (SeaKing 675/325 kHz or the harbour sonar).
+"""``seaking_sim``: the simulated sonar: a scanning SeaKing (675/325 kHz), the harbour sonar, or a
+multibeam imaging sonar (Oculus, Gemini, ARIS classes; one frame per sector).
 
 Publishes, per sector (DESIGN §4): ``sonar/sector`` (32FC1 amplitudes; mono8 dB counts with
 ``output.coding: db``, as the ``*_structured`` scenarios do), ``sonar/sector_info`` (its geometry,
 same header), ``sonar/fan`` (mono8 picture, painted only while someone listens), ``sonar/truth`` and
-``platform/odometry``; and ``diagnostics`` once a second and at every change of state (start, end,
-clock): the rate of sectors (``rate_hz``, decaying if the simulator stalls), scenario, preset, stamps,
-simulated time, the clock's state and the subscribers of every output. ``rate`` sets the pace (0: as
-fast as the reliable readers acknowledge; falling behind never skips a sector) and ``stamps`` the
-clock the messages carry (:class:`~sonar_tracking.ros.pacing.Pacer`): ``wall``, ``sim`` (from
-``stamp_offset``; the same seed gives the same messages bit for bit), or ``auto`` (``wall`` when
-starting at ``rate`` 1).
+``platform/odometry``; with ``publish_projected`` also ``sonar_image``, the sector as the
+``marine_acoustic_msgs/ProjectedSonarImage`` an imaging-sonar driver publishes (where that package
+is built; otherwise an error at start and a WARN in diagnostics); and ``diagnostics`` once a second
+and at every change of state (start, end, clock): the rate of sectors (``rate_hz``, decaying if the
+simulator stalls), scenario, preset, stamps, simulated time, the clock's state and the subscribers
+of every output. ``rate`` sets the pace (0: as fast as the reliable readers acknowledge; falling
+behind never skips a sector) and ``stamps`` the clock the messages carry
+(:class:`~sonar_tracking.ros.pacing.Pacer`): ``wall``, ``sim`` (from ``stamp_offset``; the same seed
+gives the same messages bit for bit), or ``auto`` (``wall`` when starting at ``rate`` 1).
 
 Clock model (:mod:`sonar_tracking.ros.pacing`): the processing nodes work on message stamps, so
 the simulator publishes no ``/clock`` unless asked to (``publish_clock``), whatever its stamps.
@@ -22,6 +25,7 @@ the clock has been claimed or refused (about a second).
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -63,6 +67,9 @@ class SimNodeConfig(SimConfig, PacingConfig):
     fan_size: int = setting(512, 'longer side of /sonar/fan', unit='px', low=16, high=4096, read_only=True)
     fan_dynamic_range_db: float = setting(30.0, 'grey scale of /sonar/fan above the median', unit='dB',
                                           low=1.0, high=120.0)
+    publish_projected: bool = setting(False, 'also publish every sector as marine_acoustic_msgs/ProjectedSonarImage '
+                                      'on sonar_image, as an imaging-sonar driver does (for projected_sonar_adapter; '
+                                      'needs marine_acoustic_msgs built)', read_only=True)
 
 
 class SeaKingSimNode(Node):
@@ -89,6 +96,10 @@ class SeaKingSimNode(Node):
         self.pub_fan = self.create_publisher(Image, 'sonar/fan', QoSProfile(depth=1))
         self.pub_truth = self.create_publisher(PointCloud2, 'sonar/truth', reliable)
         self.pub_odom = self.create_publisher(Odometry, 'platform/odometry', reliable)
+        self.pub_projected = self._projected_publisher() if c.publish_projected else None
+        im = c.imaging   # what ping_info says of an imaging head (0: unknown, for the scanning sensors)
+        self._ping_info = ({'sound_speed': im.sound_speed, 'frequency': im.frequency_khz * 1e3,
+                            'beam_width': math.radians(im.beam_width_deg)} if c.is_imaging else {})
         self.canvas, self.sectors = PolarCanvas.with_size(self.sim.sensor.coverage(), c.fan_size), 0
         self.gate = SubscriberGate(self, (self.pub_sector, self.pub_info), (self.pub_sector, self.pub_info,
                                    self.pub_truth, self.pub_odom), c.wait_for_subscribers, c.start_settle_time)
@@ -99,6 +110,17 @@ class SeaKingSimNode(Node):
         self.sim_clock = SimClock(self, c.clock_period, self.report_now) if c.publish_clock else None
         self.create_timer(1.0, self.report_now)
         self.timer = self._timer(c.rate)
+
+    def _projected_publisher(self):
+        """The ``sonar_image`` publisher, or None (with the reason logged) without marine_acoustic_msgs."""
+        try:
+            from marine_acoustic_msgs.msg import ProjectedSonarImage
+        except ImportError:
+            self.get_logger().error('publish_projected: marine_acoustic_msgs is not importable (build it with '
+                                    '`python -m sonar_tracking.cli.build_interfaces`); publishing the sector '
+                                    'topics only')
+            return None
+        return self.create_publisher(ProjectedSonarImage, 'sonar_image', output_profile(10))
 
     def _timer(self, rate: float):
         return self.create_timer(0.0 if rate == 0 else 0.005, self._tick)
@@ -169,6 +191,8 @@ class SeaKingSimNode(Node):
             self.sim_clock.advance(ns)
         self.pub_sector.publish(ma.array_to_image(s.amplitudes, stamp_ns=ns, frame_id=sonar))
         self.pub_info.publish(ma.geometry_to_scan(s.geometry, amplitudes=s.amplitudes, stamp_ns=ns, frame_id=sonar))
+        if self.pub_projected is not None:
+            self.pub_projected.publish(ma.sector_to_projected(s.amplitudes, s.geometry, ns, sonar, **self._ping_info))
         self.pub_truth.publish(ma.array_to_cloud(self.sim.truth_records(s.stamp), stamp_ns=ns, frame_id=world))
         _, _, _, vx, vy = self.sim.scene.platform_pose(s.stamp)
         self.pub_odom.publish(pose_to_odometry(*s.pose, vx, vy, stamp_ns=ns, frame_id=world, child_frame_id=sonar))
@@ -184,11 +208,14 @@ class SeaKingSimNode(Node):
             claiming = self.sim_clock is not None and self.sim_clock.state == 'claiming'
             self.diag.idle = 'waiting for ' + ('the claim of /clock' if claiming else
                                                f'subscribers ({self.gate.describe()})')
-        self.diag.listeners = {p.topic_name: p.get_subscription_count() for p in
-                               (self.pub_sector, self.pub_info, self.pub_fan, self.pub_truth, self.pub_odom)}
+        outputs = [self.pub_sector, self.pub_info, self.pub_fan, self.pub_truth, self.pub_odom, self.pub_projected]
+        self.diag.listeners = {p.topic_name: p.get_subscription_count() for p in outputs if p is not None}
         clock = 'off' if self.sim_clock is None else self.sim_clock.describe()
         refused = self.sim_clock is not None and self.sim_clock.state == 'refused'
         self.diag.condition('clock', f'clock {clock}' if refused else None, DiagnosticStatus.WARN)
+        no_projected = c.publish_projected and self.pub_projected is None
+        self.diag.condition('projected', 'publish_projected: marine_acoustic_msgs not importable' if no_projected
+                            else None, DiagnosticStatus.WARN)
         self.diag.values = {'scenario': c.scenario, 'preset': c.preset, 'rate': f'{c.rate:g}',
                             'stamps': 'wall' if self.pace.wall_stamps else 'sim', 'sectors': str(self.sectors),
                             'sim_time_s': 'nan' if self.sim_time is None else f'{self.sim_time:.3f}', 'clock': clock}

@@ -12,6 +12,10 @@ in the world frame (REP-103: x forward, y left, angles counter-clockwise).
   and a heading that wobbles around the tow direction so the target's aspect keeps changing.
   The deviation is bounded and has an analytic velocity, and the whole path is fixed by the
   generator at construction, so it can be sampled at any time.
+* :class:`WaypointTrajectory`: straight legs at constant speed round a closed polygon (a diver's
+  patrol, a platform's survey lines).
+* :class:`RelativeTrajectory`: a path given in the frame of a moving platform (a target that
+  keeps station ahead of an AUV).
 """
 from __future__ import annotations
 
@@ -20,7 +24,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ['Trajectory', 'StaticTrajectory', 'Segment', 'ScriptedTrajectory', 'DraggedTrajectory', 'BandLimitedNoise']
+__all__ = ['Trajectory', 'StaticTrajectory', 'Segment', 'ScriptedTrajectory', 'DraggedTrajectory', 'BandLimitedNoise',
+           'WaypointTrajectory', 'RelativeTrajectory']
 
 
 class Trajectory:
@@ -159,3 +164,52 @@ class DraggedTrajectory(Trajectory):
 
     def heading(self, t: float) -> float:
         return self.base_heading + float(self.yaw.value(max(0.0, float(t)))[0])
+
+
+class WaypointTrajectory(Trajectory):
+    """Straight legs at constant speed through ``points``, from the last back to the first, round and round.
+
+    ``speeds`` [m/s] has one value per leg (leg k from point k to point k + 1); the velocity changes at
+    once at a waypoint. The heading is the direction of motion.
+    """
+
+    def __init__(self, points, speeds) -> None:
+        self.points = np.asarray(points, dtype=float)
+        legs = np.roll(self.points, -1, axis=0) - self.points
+        lengths = np.hypot(legs[:, 0], legs[:, 1])
+        speeds = np.broadcast_to(np.asarray(speeds, dtype=float), lengths.shape)
+        if np.any(lengths <= 0) or np.any(speeds <= 0):
+            raise ValueError('waypoints must differ and speeds be > 0')
+        durations = lengths / speeds
+        self.velocities = legs / durations[:, None]
+        self.starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
+        self.period = float(durations.sum())
+
+    def state(self, t: float) -> np.ndarray:
+        t = max(0.0, float(t)) % self.period
+        k = int(np.searchsorted(self.starts, t, side='right')) - 1
+        p = self.points[k] + self.velocities[k] * (t - self.starts[k])
+        return np.array([p[0], p[1], self.velocities[k, 0], self.velocities[k, 1]])
+
+
+class RelativeTrajectory(Trajectory):
+    """A path ``local`` given in the frame of a moving ``platform`` (x along its heading), in the world frame.
+
+    The velocity is the derivative of the world position (central difference over 1 ms); the heading
+    the direction of motion.
+    """
+
+    def __init__(self, platform: Trajectory, local: Trajectory) -> None:
+        self.platform, self.local = platform, local
+
+    def _position(self, t: float) -> np.ndarray:
+        p, q, yaw = self.platform.state(t), self.local.state(t), self.platform.heading(t)
+        c, s = math.cos(yaw), math.sin(yaw)
+        return np.array([p[0] + c * q[0] - s * q[1], p[1] + s * q[0] + c * q[1]])
+
+    def state(self, t: float) -> np.ndarray:
+        t = max(0.0, float(t))
+        h = 1e-3
+        v = (self._position(t + h) - self._position(max(0.0, t - h))) / (t + h - max(0.0, t - h))
+        p = self._position(t)
+        return np.array([p[0], p[1], v[0], v[1]])

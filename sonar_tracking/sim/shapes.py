@@ -1,5 +1,5 @@
 """Target shapes of the FLS paper's tank trials (§3.4): pontoon, cube, triangular prism,
-reflector, sphere, plus an ideal point.
+reflector, sphere, plus an ideal point; and the imaging-sonar targets: a diver, a vehicle and a fish.
 
 A shape is a set of scatterers in the body frame (x along the body heading). Flat faces are rows
 of facet scatterers whose echo is mostly specular, ``cos(incidence) ** n``, with a diffuse share
@@ -8,9 +8,13 @@ cube seen face-on gives one bright line, but seen corner-on gives a few separate
 target, several unconnected regions (FLS paper §2, drawback 2). The sphere's steep, outward-facing
 facets reduce to the specular point facing the sonar. Weights are normalised so the strongest
 aspect returns a total of 1.
+
+``height`` is how far the object stands above what lies behind it, for the acoustic shadow an
+imaging sonar draws (:mod:`.imaging`); 0 casts none.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -33,6 +37,7 @@ class Shape:
     weights: np.ndarray    # (K,) relative strengths
     exponents: np.ndarray  # (K,) facet directivity exponents
     extent: float          # largest dimension [m]
+    height: float = dataclasses.field(default=0.0, kw_only=True)  # shadow-casting height [m]
 
     def response(self, toward_sonar: np.ndarray) -> np.ndarray:
         """Echo strength of every scatterer for unit directions toward the sonar, body frame.
@@ -46,14 +51,14 @@ class Shape:
         return self.weights * np.where(iso, 1.0, facet)
 
 
-def _normalised(name: str, points, normals, weights, exponents, extent: float) -> Shape:
+def _normalised(name: str, points, normals, weights, exponents, extent: float, height: float = 0.0) -> Shape:
     pts, nrm = np.asarray(points, float), np.asarray(normals, float)
     w, e = np.asarray(weights, float), np.asarray(exponents, float)
     raw = Shape(name, pts, nrm, w, e, extent)
     angles = np.linspace(0.0, 2 * math.pi, 720, endpoint=False)
     u = np.stack([np.cos(angles), np.sin(angles)], axis=1)
     peak = raw.response(u[:, None, :]).sum(axis=1).max()
-    return Shape(name, pts, nrm, w / peak, e, extent)
+    return Shape(name, pts, nrm, w / peak, e, extent, height=height)
 
 
 def _polygon(name: str, vertices, face_exponent: float, corner_weight: float, spacing: float = 0.05) -> Shape:
@@ -108,6 +113,34 @@ def _triangle(side: float) -> Shape:
     return _polygon('prism', verts, face_exponent=12.0, corner_weight=0.03)
 
 
+def _diver() -> Shape:
+    # A swimming diver seen from above, 1.8 m head to fins and 0.5 m across the arms: isotropic
+    # scatterers of a soft body, the cylinder and valve of the tank strongest, the fins weakest.
+    parts = [((0.80, 0.00), 0.5),                                  # head
+             ((0.50, 0.22), 0.3), ((0.50, -0.22), 0.3),            # arms / shoulders
+             ((0.45, 0.00), 1.0), ((0.20, 0.00), 1.0),             # tank
+             ((0.05, 0.00), 0.6),                                  # hips, weight belt
+             ((-0.35, 0.12), 0.3), ((-0.35, -0.12), 0.3),          # knees
+             ((-0.70, 0.12), 0.2), ((-0.70, -0.12), 0.2),          # ankles
+             ((-0.90, 0.15), 0.15), ((-0.90, -0.15), 0.15)]        # fins
+    pts = [p for p, _ in parts]
+    return _normalised('diver', pts, np.zeros((len(pts), 2)), [w for _, w in parts], np.ones(len(pts)), 1.8,
+                       height=0.4)
+
+
+def _vehicle(length: float = 3.5, width: float = 0.6) -> Shape:
+    # A work-class ROV or AUV hull: a box whose flanks flash at broadside (specular facets), plus
+    # isotropic nose, thrusters and skids that keep it bright from any aspect.
+    hull = _rectangle('vehicle', length, width, face_exponent=8.0, corner_weight=0.05)
+    h, w = length / 2, width / 2
+    extra = [((h, 0.0), 0.3), ((-h, w), 0.25), ((-h, -w), 0.25), ((0.0, w), 0.15), ((0.0, -w), 0.15)]
+    pts = np.concatenate([hull.points, [p for p, _ in extra]])
+    nrm = np.concatenate([hull.normals, np.zeros((len(extra), 2))])
+    wts = np.concatenate([hull.weights, [v for _, v in extra]])
+    exps = np.concatenate([hull.exponents, np.ones(len(extra))])
+    return _normalised('vehicle', pts, nrm, wts, exps, float(math.hypot(length, width)), height=0.6)
+
+
 SHAPES: dict[str, Shape] = {
     'pontoon': _rectangle('pontoon', 1.0, 0.4, face_exponent=20.0, corner_weight=0.02),
     'cube': _rectangle('cube', 0.5, 0.5, face_exponent=12.0, corner_weight=0.04),
@@ -115,6 +148,10 @@ SHAPES: dict[str, Shape] = {
     'reflector': _reflector(0.4),
     'sphere': _sphere(0.25),
     'point': _normalised('point', [(0.0, 0.0)], [(0.0, 0.0)], [1.0], [1.0], 0.0),
+    'diver': _diver(),
+    'vehicle': _vehicle(),
+    # A fish of about 30 cm: one isotropic scatterer (its swim bladder), too small to cast a shadow.
+    'fish': _normalised('fish', [(0.0, 0.0)], [(0.0, 0.0)], [1.0], [1.0], 0.3),
 }
 
 

@@ -1,5 +1,9 @@
 """The simulator: a scenario's scene seen by one sensor, sector after sector.
 
+The sensor follows the preset: the harbour sonar (:class:`HarbourSonar`), a SeaKing
+(:class:`SeaKingSonar`) or a multibeam imaging sonar (:class:`ImagingSonar`: ``oculus_m750d``,
+``gemini_720``, ``aris3000``, one frame per sector).
+
 :class:`SimConfig` is the whole configuration (what ``seaking_sim`` exposes as parameters);
 :meth:`SimConfig.for_scenario` gives a scenario's defaults (sensor preset, clutter rate, SNR,
 duration, sensor window). :class:`Simulator` draws the scene's random parts and the per-sector
@@ -21,7 +25,15 @@ from sonar_tracking.core.config import Config, ConfigError, setting
 from sonar_tracking.core.records import TRUTH_DTYPE
 from sonar_tracking.sim.amplitude import AmplitudeConfig, AmplitudeModel
 from sonar_tracking.sim.harbour import HarbourConfig, HarbourSonar
-from sonar_tracking.sim.presets import SCENARIOS, SENSOR_PRESETS, STRUCTURE_PRESETS, build_scene, scenario_info
+from sonar_tracking.sim.imaging import ImagingConfig, ImagingSonar
+from sonar_tracking.sim.presets import (
+    IMAGING_PRESETS,
+    SCENARIOS,
+    SENSOR_PRESETS,
+    STRUCTURE_PRESETS,
+    build_scene,
+    scenario_info,
+)
 from sonar_tracking.sim.scene import Scene
 from sonar_tracking.sim.seaking import SeaKingConfig, SeaKingSonar
 from sonar_tracking.sim.sensor import SimSector
@@ -35,12 +47,12 @@ class SimConfig(Config):
     """Scenario, sensor and clutter settings of the simulator."""
 
     scenario: str = setting('scenario2', 'scenario preset (ESC scenario1/2, FLS fls1..fls14, sea_trial, clutter; '
-                            '*_structured and structure_only add walls, seabed, ringdown and 8-bit dB output)',
-                            choices=tuple(SCENARIOS), read_only=True)
+                            '*_structured and structure_only add walls, seabed, ringdown and 8-bit dB output; '
+                            'imaging_* for the imaging sonars)', choices=tuple(SCENARIOS), read_only=True)
     preset: str = setting('harbour', 'sensor preset', choices=tuple(SENSOR_PRESETS), read_only=True)
     seed: int = setting(0, 'random seed: same seed, same messages', low=0, high=2**63 - 1, read_only=True)
-    sector_size: int = setting(10, 'pings per published sector (SeaKing; a harbour scan is one sector)',
-                               low=1, high=8000, read_only=True)
+    sector_size: int = setting(10, 'pings per published sector (SeaKing; a harbour scan or an imaging frame is '
+                               'one sector)', low=1, high=8000, read_only=True)
     duration: float = setting(100.0, 'scenario length, 0 = no end', unit='s', low=0.0, read_only=True)
     clutter_lambda: float = setting(1.6, 'clutter rate lam of eq. (15) outside any clutter region',
                                     low=1e-3, high=1e3)
@@ -48,6 +60,7 @@ class SimConfig(Config):
     amplitude: AmplitudeConfig = dataclasses.field(default_factory=AmplitudeConfig)
     harbour: HarbourConfig = dataclasses.field(default_factory=HarbourConfig)
     seaking: SeaKingConfig = dataclasses.field(default_factory=SeaKingConfig)
+    imaging: ImagingConfig = dataclasses.field(default_factory=ImagingConfig)
     structure: StructureConfig = dataclasses.field(default_factory=StructureConfig)
     output: OutputConfig = dataclasses.field(default_factory=OutputConfig)
 
@@ -83,6 +96,11 @@ class SimConfig(Config):
     def is_harbour(self) -> bool:
         return self.preset == 'harbour'
 
+    @property
+    def is_imaging(self) -> bool:
+        """Whether the sensor is a multibeam imaging sonar (:class:`ImagingSonar`)."""
+        return self.preset in IMAGING_PRESETS
+
 
 def child_seeds(seq: np.random.SeedSequence, n: int) -> list[np.random.SeedSequence]:
     """The first ``n`` children of ``seq``, as ``seq.spawn(n)`` gives them on a fresh sequence, but
@@ -108,11 +126,16 @@ class Simulator:
         scene_rng, self.noise_rng = child_generators(rng, 2)
         self.scene: Scene = build_scene(config.scenario, scene_rng, config.clutter_lambda, config.snr_db,
                                         config.duration, config.preset)
-        # Drawn after the targets, so a structured scene has the same targets as its plain one.
-        self.scene.structure = build_structure(config.structure, scene_rng)
+        # Drawn after the targets, so a structured scene has the same targets as its plain one. A
+        # scenario that lays out its own structure (imaging_harbour) keeps it unless one is asked for.
+        if config.structure.kind != 'none' or self.scene.structure is None:
+            self.scene.structure = build_structure(config.structure, scene_rng)
         amplitude = AmplitudeModel(config.amplitude)
+        self.sensor: HarbourSonar | SeaKingSonar | ImagingSonar
         if config.is_harbour:
-            self.sensor: HarbourSonar | SeaKingSonar = HarbourSonar(config.harbour, amplitude)
+            self.sensor = HarbourSonar(config.harbour, amplitude)
+        elif config.is_imaging:
+            self.sensor = ImagingSonar(config.imaging)
         else:
             self.sensor = SeaKingSonar(config.seaking, config.sector_size, amplitude)
 
@@ -160,9 +183,11 @@ class Simulator:
 
     @property
     def sweep_period(self) -> float:
-        """Time of a full image: a harbour scan or a SeaKing sweep [s]."""
+        """Time of a full image: a harbour scan, a SeaKing sweep or an imaging-sonar frame [s]."""
         if isinstance(self.sensor, HarbourSonar):
             return self.config.harbour.scan_period
+        if isinstance(self.sensor, ImagingSonar):
+            return self.config.imaging.frame_period
         return self.config.seaking.sweep_time
 
 
@@ -173,6 +198,13 @@ def describe(config: SimConfig) -> str:
         extra += f'; {config.structure.kind} structure'
     if config.output.coding == 'db':
         extra += f'; 8-bit dB output ({config.output.db_span:g} dB span, gain floor {config.output.gain_floor:g})'
+    if config.is_imaging:
+        m = config.imaging
+        law = 'Rayleigh' if m.clutter == 'rayleigh' else f'K (shape {m.k_shape:g})'
+        return (f'{config.scenario} on {config.preset}: {m.n_beams} beams over {m.fov_deg:g} deg '
+                f'({m.beam_width_deg:g} deg beams, sidelobes {m.sidelobe_db:g} dB) x {m.n_bins} bins '
+                f'{m.range_min:g}-{m.range_max:g} m, {m.frame_rate:g} frames/s, {law} speckle, seabed beyond '
+                f'{m.grazing_range:.1f} m{extra}')
     if config.is_harbour:
         g = config.harbour.geometry()
         return (f'{config.scenario} on the harbour sonar: {g.n_bins} x {g.n_beams} cells of '

@@ -52,7 +52,7 @@ from sonar_tracking.core.intensity import decode, encode_db
 from sonar_tracking.sim.shapes import Shape
 
 __all__ = ['STRUCTURE_KINDS', 'OUTPUT_CODINGS', 'StructureConfig', 'OutputConfig', 'Structure', 'RoughShape',
-           'Texture', 'build_structure', 'encode_output', 'decode_output', 'TANK_WALLS', 'HARBOUR_WALLS',
+           'Texture', 'walls_of', 'build_structure', 'encode_output', 'decode_output', 'TANK_WALLS', 'HARBOUR_WALLS',
            'HARBOUR_PILES', 'HARBOUR_SONAR_XY']
 
 STRUCTURE_KINDS = ('none', 'tank', 'harbour')
@@ -209,7 +209,7 @@ class Structure:
         return mean * rng.gamma(k, 1.0 / k, mean.shape)
 
 
-def _walls(segments, level: float, spacing: float, thickness: float, roughness: float, toward: tuple,
+def walls_of(segments, level: float, spacing: float, thickness: float, roughness: float, toward: tuple,
            rng: np.random.Generator) -> RoughShape:
     """Scatterers every ``spacing`` along each segment, jittered across ``thickness``, normals toward ``toward``."""
     points, normals, weights = [], [], []
@@ -241,7 +241,7 @@ def build_structure(config: StructureConfig, rng: np.random.Generator) -> Struct
         segments, sonar, piles = TANK_WALLS, (0.0, 0.0), ()
     else:
         segments, sonar, piles = HARBOUR_WALLS, HARBOUR_SONAR_XY, HARBOUR_PILES
-    walls = _walls(segments, 10 ** (config.wall_db / 10), spacing, thickness, config.roughness, sonar, rng)
+    walls = walls_of(segments, 10 ** (config.wall_db / 10), spacing, thickness, config.roughness, sonar, rng)
     pile_shape = None
     if piles:
         p = np.asarray(piles, float)

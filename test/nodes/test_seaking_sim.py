@@ -1,7 +1,9 @@
 """The seaking_sim node over real DDS: determinism, topics, parameters good and bad."""
 from __future__ import annotations
 
+import os
 import re
+import signal
 import subprocess
 
 import numpy as np
@@ -184,3 +186,45 @@ def test_diagnostics_say_rate_scenario_clock_subscribers_and_the_end(ros, inproc
     finally:
         for s in subs:
             ros.node.destroy_subscription(s)
+
+
+
+def test_projected_frames_give_the_adapter_the_simulators_sectors(ros, launch):
+    """publish_projected: every sector also goes out as a ProjectedSonarImage, and
+    projected_sonar_adapter (in a namespace of its own) turns each back into the same sector."""
+    pytest.importorskip('marine_acoustic_msgs.msg', reason='marine_acoustic_msgs not built here (make build does)')
+    import sys
+
+    from sensor_msgs.msg import Image, LaserScan
+
+    from sonar_tracking import process
+    adapter = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.nodes.projected_sonar_adapter', '--ros-args',
+                                '-r', '__ns:=/adapted', '-r', 'sonar_image:=/sonar_image'], stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True, start_new_session=True,
+                               preexec_fn=process.child_dies_with_parent())
+    try:
+        ros.wait(lambda: ros.node.count_subscribers('/sonar_image') >= 1, 60.0, 'the adapter to subscribe')
+        got = {t: [] for t in ('/sonar/sector', '/sonar/sector_info', '/adapted/sonar/sector',
+                                '/adapted/sonar/sector_info')}
+        for topic in got:
+            ros.node.create_subscription(Image if topic.endswith('sector') else LaserScan, topic, got[topic].append,
+                                         KEEP_ALL)
+        ros.wait(lambda: ros.node.count_publishers('/adapted/sonar/sector') >= 1, 30.0, 'the adapter\'s output')
+        proc = launch('seaking_sim', 'scenario:=imaging_diver', 'preset:=aris3000', 'duration:=0.5', 'rate:=0.0',
+                      'wait_for_subscribers:=1', 'shutdown_when_done:=true', 'publish_projected:=true')
+        ros.wait(lambda: proc.poll() is not None, 60.0, 'the simulator to finish')
+        sent = int(re.search(r'finished after (\d+) sectors', proc.stderr.read()).group(1))
+        ros.wait(lambda: min(len(m) for m in got.values()) >= sent, 30.0, 'every sector through the adapter')
+    finally:
+        os.killpg(adapter.pid, signal.SIGINT)
+        adapter.communicate(timeout=30)
+    assert sent >= 2
+    for img, scan, a_img, a_scan in zip(*got.values()):
+        values, geometry = ma.sector_from_messages(img, scan)
+        a_values, a_geometry = ma.sector_from_messages(a_img, a_scan)
+        assert ma.header_ns(a_img) == ma.header_ns(img) and a_img.encoding == img.encoding == 'mono8'
+        np.testing.assert_array_equal(a_values, values)
+        assert a_geometry.angle_min == pytest.approx(geometry.angle_min, abs=1e-6)
+        assert a_geometry.angle_increment == pytest.approx(geometry.angle_increment, rel=1e-5)
+        assert a_geometry.range_min == pytest.approx(geometry.range_min, rel=1e-5)
+        assert a_geometry.range_max == pytest.approx(geometry.range_max, rel=1e-5)
