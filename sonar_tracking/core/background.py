@@ -9,7 +9,12 @@ around it. This module is the one place that says how that level is estimated:
    sensor's gain floor, blanked, or beyond its range; imaging sonars report 45-73 % of a range bin
    as 0 in open water), and so is a non-finite value (:func:`measured`). Cells outside the sector
    are no data too. Estimates use the measured cells alone and report how many they had, so a
-   caller can correct for a short sample instead of mistaking zeros for quiet water.
+   caller can correct for a short sample instead of mistaking zeros for quiet water. Where the
+   zeros are the cells below a known floor ``f`` (8-bit counts: half a count above 0, see
+   :func:`sonar_tracking.core.intensity.zero_floor`), the window estimates take the measured cells'
+   excess over ``f``: an exponential law forgets the floor (the excess of a cell above ``f`` is
+   exponential with the same mean), so the level comes out unbiased from the measured cells alone,
+   where their plain mean would be too high by up to ``f``.
 2. **Speckle model.** Clutter intensity is fully developed speckle: exponential with the local mean
    as its only parameter (compound laws such as K are exponential given their texture). The level
    is that mean, estimated from the training cells by their mean (``ca``), the greater of the means
@@ -161,18 +166,19 @@ class Window:
 
     def correlate(self, image: np.ndarray, nearer_only: bool = False) -> np.ndarray:
         """Sum of ``image`` over each cell's training cells (or their nearer half); outside the image
-        counts 0. float32 of the image's shape (sums of at most a few thousand cells)."""
+        counts 0. ``image`` is bins x beams, or bins x beams x channels (each channel summed alone,
+        in one pass). float32 of the image's shape (sums of at most a few thousand cells)."""
         img = np.ascontiguousarray(image, dtype=np.float32)
         out = np.zeros(img.shape, np.float32)
         for rows, cols, sign in self._separable(nearer_only):
             if not rows.any() or not cols.any():
                 continue
             # sepFilter2D correlates (no kernel flip): out[y, x] = sum k[i, j] img[y + i - r, x + j - r]
-            part = cv2.sepFilter2D(img, cv2.CV_32F, cols, rows, borderType=cv2.BORDER_CONSTANT)
+            part = cv2.sepFilter2D(img, cv2.CV_32F, _trimmed(cols), _trimmed(rows), borderType=cv2.BORDER_CONSTANT)
             if sign > 0:
-                out += part
+                out += part.reshape(img.shape)
             else:
-                out -= part
+                out -= part.reshape(img.shape)
         return out
 
     def counts(self, shape: tuple[int, int], nearer_only: bool = False) -> np.ndarray:
@@ -185,6 +191,14 @@ class Window:
                 cache.clear()
             cache[key] = np.rint(self.correlate(np.ones(shape, np.float32), nearer_only))
         return cache[key]
+
+
+def _trimmed(kernel: np.ndarray) -> np.ndarray:
+    """A centred kernel without the zero taps at both ends beyond its farthest non-zero tap (the
+    centre stays the centre): a single-tap row costs one pass, not one per tap."""
+    r = len(kernel) // 2
+    reach = int(np.max(np.abs(np.flatnonzero(kernel) - r)))
+    return np.ascontiguousarray(kernel[r - reach:r + reach + 1])
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,38 +219,51 @@ class WindowSums:
         return self.count - self.near_count
 
 
-def window_sums(power: np.ndarray, window: Window, halves: bool = False) -> WindowSums:
+def _excess(p: np.ndarray, ok: np.ndarray, floor: float) -> np.ndarray:
+    """Measured cells' excess over the floor (rule 1), 0 where unmeasured."""
+    if floor > 0:
+        return np.where(ok, np.maximum(p - np.float32(floor), np.float32(0.0)), np.float32(0.0))
+    return p if ok.all() else np.where(ok, p, np.float32(0.0))
+
+
+def window_sums(power: np.ndarray, window: Window, halves: bool = False, floor: float = 0.0) -> WindowSums:
     """Sums and counts of the measured training cells of every cell of ``power`` (bins x beams,
-    linear intensity). ``halves``: also the nearer half's (for greatest-of; otherwise those are
-    empty). Counts are exact integers (float32); unmeasured cells add 0 to the sums."""
+    linear intensity); the sums are of their excess over ``floor`` (rule 1; 0: of the values).
+    ``halves``: also the nearer half's (for greatest-of; otherwise those are empty). Counts are
+    exact integers (float32); unmeasured cells add 0 to the sums."""
     p = np.asarray(power, dtype=np.float32)
     ok = measured(p)
-    everywhere = bool(ok.all())
-    values = p if everywhere else np.where(ok, p, np.float32(0.0))
-    mask = ok.astype(np.float32)
+    values = _excess(p, ok, floor)
+    if ok.all():   # the counts depend on the frame size only
+        total = window.correlate(values)
+        count = window.counts(p.shape)
+        if not halves:
+            return WindowSums(np.maximum(total, 0.0), count, _NONE, _NONE)
+        near = window.correlate(values, True)
+        return WindowSums(np.maximum(total, 0.0), count, np.maximum(near, 0.0), window.counts(p.shape, True))
+    both = np.stack([values, ok.astype(np.float32)], axis=-1)      # sums and counts in one pass
+    total = window.correlate(both)
+    if not halves:
+        return WindowSums(np.maximum(total[..., 0], 0.0), np.rint(total[..., 1]), _NONE, _NONE)
+    near = window.correlate(both, True)
+    return WindowSums(np.maximum(total[..., 0], 0.0), np.rint(total[..., 1]), np.maximum(near[..., 0], 0.0),
+                      np.rint(near[..., 1]))
 
-    def count(nearer_only: bool) -> np.ndarray:
-        if everywhere:
-            return window.counts(p.shape, nearer_only)
-        return np.rint(window.correlate(mask, nearer_only))
-    total = np.maximum(window.correlate(values), 0.0)
-    if halves:
-        near_total, near_count = np.maximum(window.correlate(values, True), 0.0), count(True)
-    else:
-        near_total = near_count = np.zeros((0, 0), np.float32)
-    return WindowSums(total, count(False), near_total, near_count)
+
+_NONE = np.zeros((0, 0), np.float32)
 
 
-def window_order(power: np.ndarray, window: Window, rank: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``rank``-th smallest (1-based) of every cell's training cells, unmeasured and outside
-    cells taken as 0 (they sort first), and the number of those zeros among its training cells.
+def window_order(power: np.ndarray, window: Window, rank: int, floor: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """The ``rank``-th smallest (1-based) of every cell's training cells (their excess over ``floor``,
+    rule 1), unmeasured and outside cells taken as 0 (they sort first), and the number of those
+    zeros among its training cells.
 
     A cell with ``m`` unmeasured training cells has as its value the ``(rank - m)``-th smallest of
-    its ``size - m`` measured ones (0 when ``m >= rank``). Returns float64 arrays of ``power``'s shape.
+    its ``size - m`` measured ones (0 when ``m >= rank``). Returns arrays of ``power``'s shape.
     """
-    p = np.asarray(power, dtype=np.float64)
+    p = np.asarray(power, dtype=np.float32)
     ok = measured(p)
-    values = np.where(ok, p, 0.0)
+    values = _excess(p, ok, floor)
     stat = rank_filter(values, rank - 1, footprint=window.footprint, mode='constant', cval=0.0)
     missing = window.size - np.rint(window.correlate(ok.astype(np.float32)))
     return stat, missing

@@ -27,6 +27,8 @@ is a level). Only ``db`` values may be negative. Cells at or below
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -34,7 +36,8 @@ import numpy as np
 from sonar_tracking.core.config import Config, ConfigError, setting
 from sonar_tracking.core.sector import SectorGeometry
 
-__all__ = ['CODINGS', 'IntensityConfig', 'decode', 'encode_db', 'full_scale_of', 'gate_ranges', 'condition']
+__all__ = ['CODINGS', 'IntensityConfig', 'decode', 'encode_db', 'full_scale_of', 'gate_ranges', 'condition',
+           'zero_floor']
 
 CODINGS = ('linear_amplitude', 'linear_power', 'db', 'display')
 
@@ -73,7 +76,26 @@ def decode(values: np.ndarray, coding: str = 'linear_amplitude', *, db_span: flo
 
     ``full_scale`` is the count of full scale of an integer image (:func:`full_scale_of`); None
     for float values. Exact zero counts stay 0. Raises ValueError for an unknown coding.
+    8- and 16-bit counts are looked up in a table of every count's value (the same numbers).
     """
+    raw = np.asarray(values)
+    if raw.dtype in (np.uint8, np.uint16):
+        table = _count_table(raw.dtype.str, coding, float(db_span), float(gamma), full_scale)
+        return table[raw]
+    return _decode(raw, coding, db_span, gamma, full_scale)
+
+
+@functools.lru_cache(maxsize=16)
+def _count_table(dtype: str, coding: str, db_span: float, gamma: float, full_scale: float | None) -> np.ndarray:
+    """The decoded value of every count of an unsigned integer dtype."""
+    counts = np.arange(np.iinfo(np.dtype(dtype)).max + 1, dtype=np.float64)
+    table = _decode(counts, coding, db_span, gamma, full_scale)
+    table.setflags(write=False)
+    return table
+
+
+def _decode(values: np.ndarray, coding: str, db_span: float, gamma: float, full_scale: float | None) -> np.ndarray:
+    """:func:`decode` by its formulas."""
     v = np.asarray(values, dtype=np.float64)
     if coding == 'linear_amplitude':
         return v.copy()
@@ -112,6 +134,27 @@ def encode_db(amplitude: np.ndarray, db_span: float = 60.0, full_scale: int = 25
         counts = 1.0 + np.rint(20.0 * np.log10(a / reference) / step)
     counts = np.where(np.isfinite(counts) & (counts >= 1.0), np.minimum(counts, full_scale), 0.0)
     return counts.astype(np.uint8 if full_scale <= 255 else np.uint16)
+
+
+def zero_floor(config: IntensityConfig, dtype: np.dtype) -> float:
+    """The decoded amplitude below which a sensor of ``config`` sending ``dtype`` values reports 0.
+
+    Integer counts round to the nearest count, so a zero stands for anything below half a count
+    above 0: ``10^(-step / 40)`` with ``db`` coding (count 1 decodes to 1), ``(0.5 / full scale)^gamma``
+    with ``display``; ``noise_floor`` when it is higher; 0 for float values without a noise floor
+    (a zero there is no data, not a weak echo).
+    """
+    full = full_scale_of(dtype)
+    floor = 0.0
+    if full and config.coding == 'db':
+        floor = 10.0 ** (-0.5 * (config.db_span / full) / 20.0)
+    elif full and config.coding == 'display':
+        floor = (0.5 / full) ** config.gamma
+    elif full and config.coding == 'linear_power':
+        floor = math.sqrt(0.5)
+    elif full:
+        floor = 0.5
+    return max(floor, config.noise_floor)
 
 
 def gate_ranges(geometry: SectorGeometry, blank_range: float, max_range: float) -> tuple[int, int]:

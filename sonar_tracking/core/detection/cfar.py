@@ -16,9 +16,11 @@ Rohling 1983):
 
 :func:`design_scale` inverts these for a design ``P_fa``. A cell near the sector's edge or among
 no-data cells has fewer training cells; it is tested with the scale of its own count, so the design
-``P_fa`` holds at every cell (``go`` with unequal halves takes the scale of the smaller half, a
-slightly lower ``P_fa``; with one half empty it is ``ca`` on the other). A cell with fewer than
-``min_train`` of the nominal training cells measured is not tested.
+``P_fa`` holds at every cell (cells below the sensor's floor count as no data, and the level comes
+from the measured cells' excess over the floor, which keeps it unbiased; ``go`` with unequal halves
+takes the scale of the smaller half, a slightly lower ``P_fa``; with one half empty it is ``ca`` on
+the other). A cell with fewer than ``min_train`` of the nominal training cells measured is not
+tested.
 
 The detector thresholds the *CFAR-normalised* image ``q = P / (Z c)``, where ``c`` is the cell's
 scale over the nominal one at the design ``P_fa`` (:meth:`Cfar.normalise`): ``q > alpha_0`` is the
@@ -41,7 +43,7 @@ import numpy as np
 from scipy.optimize import brentq
 from scipy.special import gammaln
 
-from sonar_tracking.core.background import Window, window_order, window_sums
+from sonar_tracking.core.background import Window, measured, window_order, window_sums
 from sonar_tracking.core.config import Config, ConfigError, setting
 
 __all__ = ['CFAR_METHODS', 'CfarConfig', 'Cfar', 'pfa', 'design_scale']
@@ -138,7 +140,7 @@ class Cfar:
         per = n // 2 if method == 'go' else n
         self.alpha0 = design_scale(method, per, config.pfa, self.rank)
         self._ratio = self._ratios()
-        self._go_table = self._go_ratios() if method == 'go' else self._ratio
+        self._go_table = self._go_ratios() if method == 'go' else np.zeros((0, 0))
 
     @property
     def training_cells(self) -> int:
@@ -160,40 +162,44 @@ class Cfar:
                 ratio[m] = design_scale('ca', m, c.pfa) / self.alpha0
         return ratio
 
-    def level(self, power: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The training level ``Z`` of every cell and its scale ratio ``c`` (inf: not tested)."""
+    def level(self, power: np.ndarray, floor: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """The training level ``Z`` of every cell and its scale ratio ``c`` (inf: not tested); ``floor``:
+        the intensity below which the sensor reports 0 (:mod:`sonar_tracking.core.background`, rule 1)."""
         if self.method == 'os':
-            stat, missing = window_order(power, self.window, self.rank)
+            stat, missing = window_order(power, self.window, self.rank, floor)
             return stat, self._ratio[missing.astype(np.int64)]
-        sums = window_sums(power, self.window, halves=self.method == 'go')
-        count = sums.count.astype(np.int64)
+        sums = window_sums(power, self.window, halves=self.method == 'go', floor=floor)
         with np.errstate(invalid='ignore', divide='ignore'):
             if self.method == 'ca':
-                return sums.total / np.maximum(count, 1), self._ratio[count]
-            n1, n2 = sums.near_count.astype(np.int64), sums.far_count.astype(np.int64)
-            m1 = np.where(n1 > 0, sums.near_total / np.maximum(n1, 1), 0.0)
-            m2 = np.where(n2 > 0, sums.far_total / np.maximum(n2, 1), 0.0)
-        both = (n1 > 0) & (n2 > 0)
-        ratio = np.where(both, self._go_table[np.minimum(n1, n2)], self._ratio[np.maximum(n1, n2)])
-        ratio = np.where(count >= self.min_count, ratio, np.inf)
-        return np.maximum(m1, m2), ratio
+                count = sums.count.astype(np.intp)
+                return sums.total / np.maximum(sums.count, np.float32(1.0)), self._ratio[count]
+            near, far = sums.near_count, sums.far_count
+            level = np.fmax(sums.near_total / near, sums.far_total / far)   # 0 / 0 is NaN: the other half
+        index = near.astype(np.intp) * self._go_table.shape[1] + far.astype(np.intp)
+        return level, self._go_table.reshape(-1)[index]
 
     def _go_ratios(self) -> np.ndarray:
-        """GO scale over ``alpha0`` by the count of the smaller half (both halves measured)."""
-        n = self.window.size // 2
-        table = np.full(self.window.size + 1, np.inf)
-        for m in range(1, n + 1):
-            table[m] = design_scale('go', m, self.config.pfa) / self.alpha0
+        """GO scale over ``alpha0`` by the counts of the nearer and the farther half: the GO scale of
+        the smaller half, or CA's of the one measured half; inf below ``min_train``."""
+        half = self.window.size // 2
+        go = [np.inf] + [design_scale('go', m, self.config.pfa) / self.alpha0 for m in range(1, half + 1)]
+        table = np.full((half + 1, half + 1), np.inf)
+        for n1 in range(half + 1):
+            for n2 in range(half + 1):
+                if n1 + n2 >= self.min_count:
+                    table[n1, n2] = go[min(n1, n2)] if n1 and n2 else self._ratio[n1 + n2]
         return table
 
-    def normalise(self, power: np.ndarray) -> np.ndarray:
-        """The CFAR-normalised image ``q = P / (Z c)`` (float32; 0 where a cell is not tested or has
-        no measurement). ``q > alpha0`` is the design test at every cell; a threshold ``alpha`` on ``q``
-        is that test at another scale."""
-        p = np.asarray(power, dtype=np.float64)
-        z, ratio = self.level(p)
+    def normalise(self, power: np.ndarray, floor: float = 0.0) -> np.ndarray:
+        """The CFAR-normalised image ``q = P / (Z c)`` (float32): NaN where a cell is not tested (too
+        few measured training cells, or no measurement of its own), 0 where it reads 0 below a
+        ``floor`` (the intensity below which the sensor reports 0: such a cell was measured, weak).
+        ``q > alpha0`` is the design test at every tested cell; a threshold ``alpha`` on ``q`` is that
+        test at another scale."""
+        p = np.asarray(power, dtype=np.float32)
+        z, ratio = self.level(p, floor)
         with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
             denom = z * ratio
-            q = np.where((denom > 0) & np.isfinite(denom), p / denom, 0.0)
-        q[~np.isfinite(q)] = 0.0
+            tested = np.isfinite(denom) & (denom > 0) & (measured(p) | (floor > 0) & np.isfinite(p))
+            q = np.where(tested, p / np.where(tested, denom, 1.0), np.nan)
         return q.astype(np.float32)

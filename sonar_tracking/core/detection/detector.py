@@ -58,7 +58,7 @@ from sonar_tracking.core.detection.cfar import CFAR_METHODS, Cfar, CfarConfig
 from sonar_tracking.core.detection.conversion import convert_measurements
 from sonar_tracking.core.detection.esc import ExtremumSeekingController
 from sonar_tracking.core.detection.scmde import PolarWindow, scmde, sunflower
-from sonar_tracking.core.intensity import IntensityConfig, condition
+from sonar_tracking.core.intensity import IntensityConfig, condition, zero_floor
 from sonar_tracking.core.records import DETECTION_DTYPE
 from sonar_tracking.core.sector import GeometryError, SectorError, SectorGeometry, check_sector
 from sonar_tracking.core.structure import (
@@ -297,7 +297,11 @@ class ActiveDetector:
         t = self._time(stamp, geometry)
         tau = self.threshold
         # CFAR tests the intensity against its training cells: the normalised image against the scale.
-        test = a if self.cfar is None else self.cfar.normalise(np.square(a, dtype=np.float32))
+        if self.cfar is None:
+            test = a
+        else:
+            floor = zero_floor(cfg.intensity, raw.dtype)
+            test = self.cfar.normalise(np.square(a, dtype=np.float32), floor * floor)
         cells = threshold_cells(test, tau, cfg.cells.merge_bins, cfg.cells.merge_beams,
                                 cfg.cells.grouping == 'connected', echoes=cfg.structure.enabled)
         peak = cells.amplitude if self.cfar is None else _group_peaks(a, cells)

@@ -51,9 +51,8 @@ def _count(cfar: Cfar, frames, alpha: float | None = None) -> tuple[int, int]:
     alarms = tested = 0
     for p in frames:
         q = cfar.normalise(p)
-        ok = q > 0
         alarms += int(np.count_nonzero(q > (alpha or cfar.alpha0)))
-        tested += int(np.count_nonzero(ok))
+        tested += int(np.count_nonzero(np.isfinite(q)))
     return alarms, tested
 
 
@@ -97,7 +96,7 @@ def test_the_pfa_does_not_depend_on_the_clutter_level(method):
         q = cfar.normalise(p)
         for band in (slice(20, 130), slice(170, 280)):
             alarms_far += int(np.count_nonzero(q[band] > cfar.alpha0))
-            tested_far += q[band].size
+            tested_far += int(np.count_nonzero(np.isfinite(q[band])))
     lo, hi = _interval(alarms_far, tested_far)
     assert lo <= design <= hi
 
@@ -149,3 +148,30 @@ def test_settings_are_checked():
         CfarConfig(guard_bins=0, guard_beams=0, reach_bins=1, reach_beams=0, stride_bins=1)
     with pytest.raises(ConfigError):
         Cfar('median', CfarConfig())
+
+
+def test_cells_below_the_sensors_floor_keep_the_design_pfa():
+    """8-bit dB counts of speckle whose mean lies just above the gain floor: 4 cells in 10 read 0.
+    With the floor the level comes from the measured cells' excess over it and the design rate
+    holds per cell; their plain mean is too high and gives far fewer alarms than designed."""
+    from sonar_tracking.core.intensity import IntensityConfig, decode, encode_db, zero_floor
+    rng = np.random.default_rng(17)
+    design = 1e-3
+    cfar = Cfar('ca', CfarConfig(pfa=design))
+    floor = zero_floor(IntensityConfig(coding='db', db_span=60.0), np.dtype(np.uint8)) ** 2
+    counts = dict.fromkeys(('excess', 'plain'), (0, 0))
+    zeros = []
+    for _ in range(12):
+        power = rng.standard_exponential((300, 256))
+        amplitude = decode(encode_db(np.sqrt(power), 60.0, 255, reference=0.7), 'db', db_span=60.0, full_scale=255.0)
+        p = np.square(amplitude).astype(np.float32)
+        zeros.append(np.mean(p == 0))
+        for name, f in (('excess', floor), ('plain', 0.0)):
+            q = cfar.normalise(p, f)
+            tested = np.isfinite(q) if f else np.isfinite(q) | (p == 0)    # every cell counts
+            a, n = counts[name]
+            counts[name] = (a + int(np.count_nonzero(q > cfar.alpha0)), n + int(np.count_nonzero(tested)))
+    assert 0.35 < np.mean(zeros) < 0.45
+    lo, hi = _interval(*counts['excess'])
+    assert lo <= design <= hi, counts
+    assert _interval(*counts['plain'])[1] < 0.7 * design, counts
