@@ -24,8 +24,8 @@ NODES = {'active_detector': DetectorNodeConfig, 'fls_features': FlsNodeConfig, '
 PRESETS = sorted(SENSORS.glob('*.yaml'))
 
 
-def test_the_four_sensor_families_have_presets():
-    assert {p.stem for p in PRESETS} == {'micron_seaking', 'ping360', 'oculus_m750d', 'aris_didson'}
+def test_the_sensor_families_have_presets():
+    assert {p.stem for p in PRESETS} == {'micron_seaking', 'ping360', 'oculus_m750d', 'gemini_720', 'aris_didson'}
 
 
 @pytest.mark.parametrize('path', PRESETS, ids=lambda p: p.stem)

@@ -82,6 +82,18 @@ nodes:
         assert not alive(pid), name
 
 
+def test_the_imaging_stack_detects_by_cfar_in_every_frame():
+    """The shipped imaging stack as shipped: the Oculus preset's CA-CFAR detector and the tracker
+    take every frame of the simulated imaging sonar (none lost before it was read)."""
+    from sonar_tracking.cli.sonar_stack import find_stack
+    proc = start(find_stack('imaging'), '--set', 'seaking_sim.duration=1.5')
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 0, out
+    assert re.search(r'^\[seaking_sim\] .*finished after 30 sectors', out, re.M), out
+    assert re.search(r'^\[active_detector\] .*CA-CFAR \(P_fa 1e-05 per cell, 134 training cells\)', out, re.M), out
+    assert 'lost before they were read' not in out, out
+
+
 def test_sigterm_stops_every_child_within_five_seconds(tmp_path):
     path = write(tmp_path, '''
 nodes:
