@@ -32,7 +32,10 @@ For each sector (one scan of the harbour sonar):
    module's own fallback, unbiased for Poisson counts);
 6. the ESC (:mod:`.esc`) takes the scan's density -- the mean SCMDE density over the whole
    sector, or (``esc.density_source = best_track``, Scenario 2) the density around the confirmed
-   track with the highest existence probability -- and sets the threshold of the next scan.
+   track with the highest existence probability -- and sets the threshold of the next scan; with
+   ``esc.period`` N > 1 it takes the mean density of N scans and updates once every N scans (an
+   imaging sonar at 20 frames a second sees too few false detections in one frame to measure a
+   density).
    Around the track, the density is the number of detections within ``esc.local_radius`` divided
    by the area of that disc inside the sector: an average of the detections' own SCMDE values
    would be dominated by a denser neighbouring region (it has more detections, each with a high
@@ -153,6 +156,8 @@ class EscConfig(Config):
                                   choices=('sector', 'best_track'))
     local_radius: float = setting(200.0, 'best_track: the density is measured in a disc of this radius around the '
                                   'track', unit='m', low=0.0, low_open=True, high=1e5)
+    period: int = setting(1, 'scans per ESC update: ESC sees the mean density of this many scans (1: every scan, as '
+                          'in the paper; imaging sonars see too few false detections in one frame)', low=1, high=10000)
 
 
 @dataclass(frozen=True)
@@ -221,6 +226,7 @@ class ActiveDetector:
         self.scans = 0
         self.last_density = math.nan
         self._clock = 0.0
+        self._densities: list[float] = []   # of the scans since the last ESC update
 
     @property
     def threshold(self) -> float:
@@ -237,6 +243,7 @@ class ActiveDetector:
         if on and not self._enabled:
             # Resume from the frozen threshold, without the dither's jump.
             self.esc.state.integrator = self.esc.state.threshold
+            self._densities = []
         self._enabled = bool(on)
 
     def reconfigure(self, config: DetectorConfig) -> None:
@@ -261,6 +268,7 @@ class ActiveDetector:
         self.scans = 0
         self.last_density = math.nan
         self._clock = 0.0
+        self._densities = []
 
     def state(self) -> dict:
         """JSON-ready state: threshold, density, scan count and ESC internals."""
@@ -337,7 +345,10 @@ class ActiveDetector:
         self.last_density = density
         self.scans += 1
         if self.enabled:
-            self.esc.update(density)
+            self._densities.append(density)
+            if len(self._densities) >= cfg.esc.period:
+                self.esc.update(float(np.mean(self._densities)))
+                self._densities.clear()
         rec = np.zeros(len(keep), DETECTION_DTYPE)
         rec['x'], rec['y'] = xy[:, 0], xy[:, 1]
         rec['range'], rec['bearing'], rec['amplitude'] = r, b, peak[keep]

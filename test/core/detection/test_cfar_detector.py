@@ -86,3 +86,26 @@ def test_the_fixed_method_is_unchanged_by_the_cfar_settings():
     b = ActiveDetector(other).process(amplitude, GEOMETRY, stamp=0.0)
     assert np.array_equal(a.detections, b.detections) and a.threshold == 3.0
     assert math.isclose(Cfar('ca', _config('ca').cfar).alpha0, ActiveDetector(_config('ca')).threshold)
+
+
+def test_esc_with_a_period_updates_once_every_period_scans_on_their_mean_density():
+    """esc.period 5: the threshold holds for five scans, then moves once, on the mean of their densities:
+    the same step the controller takes when fed that mean directly."""
+    from sonar_tracking.core.detection.esc import ExtremumSeekingController
+    rng = np.random.default_rng(25)
+    flat = {**_config('ca', 1e-3, esc=True).flat(), 'esc.period': 5, 'esc.desired_clutter_density': 1e-4}
+    det = ActiveDetector(DetectorConfig.from_flat(flat))
+    e = det.config.esc
+    ref = ExtremumSeekingController(1e-4, det.threshold, det.config.threshold.minimum,
+                                    det.config.threshold.maximum, e.dither_amplitude, e.dither_decay, e.gain)
+    applied, densities = [], []
+    for k in range(15):
+        amplitude = np.sqrt(rng.standard_exponential(GEOMETRY.shape)).astype(np.float32)
+        result = det.process(amplitude, GEOMETRY, stamp=float(k))
+        applied.append(result.threshold)
+        densities.append(result.mean_density)
+        if (k + 1) % 5 == 0:
+            ref.update(float(np.mean(densities[-5:])))
+            assert det.threshold == pytest.approx(ref.threshold)
+    assert len(set(applied[0:5])) == len(set(applied[5:10])) == len(set(applied[10:15])) == 1
+    assert applied[5] != applied[0] and applied[10] != applied[5]
