@@ -1,6 +1,8 @@
 """CFAR with each imaging preset's window on the simulator's noise-only frames (beam-pattern
 correlation, range-dependent level, seabed onset, 8-bit log counts with cells below the gain
-floor): the design false-alarm probability lies in the measured 99 % interval.
+floor): the design false-alarm probability lies in the measured 99 % interval. (1e-5 takes 220
+full Oculus frames, about 30 s: measured once, docs/experiments/2026-11-27-imaging-front-end.md; the
+imaging study repeats it.)
 
 Alarms come in clumps of correlated cells, so the interval is taken over independent frames (a
 Student-t interval of the per-frame rate), not from a binomial count. At least 1,000 alarms are
@@ -55,9 +57,7 @@ def measured_rate(sim_preset: str, design: float, frames: int, seed: int) -> tup
 
 
 @pytest.mark.parametrize('sim_preset,design,frames', [
-    ('oculus_m750d', 1e-3, 12), ('gemini_720', 1e-3, 12), ('aris3000', 1e-3, 12), ('oculus_m750d', 1e-4, 24),
-    pytest.param('aris3000', 1e-4, 80, marks=pytest.mark.slow),
-    pytest.param('oculus_m750d', 1e-5, 220, marks=pytest.mark.slow)])
+    ('oculus_m750d', 1e-3, 12), ('gemini_720', 1e-3, 12), ('aris3000', 1e-3, 12), ('oculus_m750d', 1e-4, 24)])
 def test_the_presets_cfar_holds_its_design_pfa_on_simulated_frames(sim_preset, design, frames):
     mean, lo, hi, alarms = measured_rate(sim_preset, design, frames, seed=31)
     assert alarms >= 1000 * 0.8, alarms            # about 1,000 expected
