@@ -50,6 +50,23 @@ def test_a_hung_teardown_ends_the_process_with_its_status():
     assert r.returncode == 0 and r.stderr == ''     # a teardown that finishes exits as usual
 
 
+def _signalled(script: str, ready: str, signals) -> tuple[subprocess.Popen, str, str]:
+    """Run ``script``; once it prints ``ready`` (and blocks reading stdin), send ``signals``, then let it
+    go on; its process, stdout and stderr."""
+    proc = subprocess.Popen([sys.executable, '-c', script], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout.readline() == ready
+        for signum in signals:
+            proc.send_signal(signum)
+        out, err = proc.communicate('go\n', timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+    return proc, out, err
+
+
 # A callback that blocks until the test has sent the signal, then uses ROS and reports.
 CALLBACK = '''
 import sys
@@ -78,16 +95,7 @@ def test_a_signal_during_a_callback_stops_the_node_after_the_callback(signum):
     """The stop waits for the running callback, which finishes with ROS still up; then the node is
     torn down in the same thread and exits 0. (rclpy's own handling cuts the callback short with a
     KeyboardInterrupt and shuts ROS down from a second thread, beside the teardown.)"""
-    proc = subprocess.Popen([sys.executable, '-c', CALLBACK], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        assert proc.stdout.readline() == 'in callback\n'
-        proc.send_signal(signum)
-        out, err = proc.communicate('go\n', timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    proc, out, err = _signalled(CALLBACK, 'in callback\n', [signum])
     assert 'callback completed, ROS up: True' in out, err
     assert proc.returncode == 0 and 'Traceback' not in err, err
 
@@ -213,17 +221,7 @@ raise SystemExit(run_node(factory, []))
 def test_a_signal_during_the_build_stops_the_node_once_built_and_a_second_ends_it(signals):
     """One signal while the node is built raises nothing into the build: the build completes, the
     node never spins and exits 0. A second signal ends the process at once with that signal."""
-    proc = subprocess.Popen([sys.executable, '-c', BUILD], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
-    try:
-        assert proc.stdout.readline() == 'building\n'
-        for signum in signals:
-            proc.send_signal(signum)
-        out, err = proc.communicate('go\n', timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    proc, out, err = _signalled(BUILD, 'building\n', signals)
     if len(signals) == 1:
         assert proc.returncode == 0 and 'Traceback' not in err, err
         assert 'built' in out and 'spun' not in out, out

@@ -24,6 +24,7 @@ import numpy as np
 
 from sonar_tracking import process
 from sonar_tracking.cli.bench import Case, Result, register
+from sonar_tracking.cli.bench_cases.pipeline import wait_for_pipeline
 
 _STATS: dict[str, dict] = {}
 RATE_HZ = 20.0
@@ -89,14 +90,7 @@ def _pipeline(name: str, minutes: float):
                                  lambda m: received.setdefault(ma.header_ns(m), time.perf_counter()), qos)
         rss: dict[str, tuple[float, float]] = {}
         try:
-            deadline = time.monotonic() + 120
-            while time.monotonic() < deadline and not (
-                    pub_img.get_subscription_count() and node.count_subscribers('/detections')
-                    and node.count_publishers('/tracks')):
-                rclpy.spin_once(node, timeout_sec=0.05)
-            end = time.monotonic() + 1.0
-            while time.monotonic() < end:
-                rclpy.spin_once(node, timeout_sec=0.05)
+            wait_for_pipeline(node, pub_img, 120.0)
             total = int(round(minutes * 60.0 * RATE_HZ))
             early = min(int(120 * RATE_HZ), total // 5)
             start = time.perf_counter()

@@ -20,6 +20,20 @@ from sonar_tracking import process
 from sonar_tracking.cli.bench import Case, register
 
 
+def wait_for_pipeline(node, sector_publisher, timeout: float) -> None:
+    """Spin ``node`` until the detector reads ``sector_publisher``, the tracker reads ``/detections`` and
+    publishes ``/tracks`` (or ``timeout`` s pass), then one more second for the matches to settle."""
+    import rclpy
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not (
+            sector_publisher.get_subscription_count() and node.count_subscribers('/detections')
+            and node.count_publishers('/tracks')):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    end = time.monotonic() + 1.0
+    while time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.05)
+
+
 def _latency(n_sectors: int = 100, rate_hz: float = 10.0):
     def measure() -> list[float]:
         from sonar_tracking.ros.runtime import configure_dds, private_domain
@@ -51,14 +65,7 @@ def _latency(n_sectors: int = 100, rate_hz: float = 10.0):
         node.create_subscription(PointCloud2, 'tracks',
                                  lambda m: received.setdefault(ma.header_ns(m), time.perf_counter()), qos)
         try:
-            deadline = time.monotonic() + 60
-            while time.monotonic() < deadline and not (
-                    pub_img.get_subscription_count() and node.count_subscribers('/detections')
-                    and node.count_publishers('/tracks')):
-                rclpy.spin_once(node, timeout_sec=0.05)
-            end = time.monotonic() + 1.0
-            while time.monotonic() < end:
-                rclpy.spin_once(node, timeout_sec=0.05)
+            wait_for_pipeline(node, pub_img, 60.0)
             for img, info in msgs:
                 stamp = ma.header_ns(img)
                 sent[stamp] = time.perf_counter()
