@@ -46,9 +46,11 @@ from scipy.special import gammaln
 from sonar_tracking.core.background import Window, measured, window_order, window_sums
 from sonar_tracking.core.config import Config, ConfigError, setting
 
-__all__ = ['CFAR_METHODS', 'CfarConfig', 'Cfar', 'pfa', 'design_scale']
+__all__ = ['CFAR_METHODS', 'MAX_TRAINING_CELLS', 'CfarConfig', 'Cfar', 'pfa', 'design_scale']
 
 CFAR_METHODS = ('ca', 'go', 'os')
+#: Most training cells a window may hold: the scale tables and the per-frame work grow with it.
+MAX_TRAINING_CELLS = 1000
 
 
 def pfa(method: str, n: int, alpha: float, rank: int = 0) -> float:
@@ -118,6 +120,9 @@ class CfarConfig(Config):
         if w.size < 4:
             raise ConfigError(f'the cfar window holds {w.size} training cells; widen reach_bins/reach_beams '
                               '(at least 4)')
+        if w.size > MAX_TRAINING_CELLS:
+            raise ConfigError(f'the cfar window holds {w.size} training cells, more than {MAX_TRAINING_CELLS}; '
+                              'narrow reach_bins/reach_beams or widen the strides')
 
     def window(self) -> Window:
         """The training window these settings describe."""

@@ -145,6 +145,8 @@ def test_settings_are_checked():
         CfarConfig(guard_bins=3, reach_bins=2)
     with pytest.raises(ConfigError, match='training cells'):
         CfarConfig(guard_bins=0, guard_beams=0, reach_bins=1, reach_beams=0, stride_bins=1)
+    with pytest.raises(ConfigError, match='more than 1000'):     # bounded work per frame and at start
+        CfarConfig(reach_bins=400, reach_beams=400, stride_bins=1, stride_beams=1)
     with pytest.raises(ConfigError):
         Cfar('median', CfarConfig())
 
