@@ -86,10 +86,10 @@ def test_the_imaging_stack_detects_by_cfar_in_every_frame():
     """The shipped imaging stack as shipped: the Oculus preset's CA-CFAR detector and the tracker
     take every frame of the simulated imaging sonar (none lost before it was read)."""
     from sonar_tracking.cli.sonar_stack import find_stack
-    proc = start(find_stack('imaging'), '--set', 'seaking_sim.duration=1.5')
+    proc = start(find_stack('imaging'), '--set', 'seaking_sim.duration=0.5')
     out, _ = proc.communicate(timeout=120)
     assert proc.returncode == 0, out
-    assert re.search(r'^\[seaking_sim\] .*finished after 30 sectors', out, re.M), out
+    assert re.search(r'^\[seaking_sim\] .*finished after 10 sectors', out, re.M), out
     assert re.search(r'^\[active_detector\] .*CA-CFAR \(P_fa 1e-05 per cell, 134 training cells\)', out, re.M), out
     assert 'lost before they were read' not in out, out
 
@@ -401,7 +401,7 @@ def test_two_harbour_stacks_in_namespaces_track_their_own_targets_without_cross_
             node.destroy_subscription(s)
     for ns, p in procs.items():
         assert p.returncode == 0, outs[ns]
-        assert 'finished after 30 sectors' in outs[ns], outs[ns]
+        assert 'finished after 10 sectors' in outs[ns], outs[ns]
     truth = {ns: ma.cloud_to_array(got[f'{ns}/sonar/truth'][-1])[0] for ns in scenario}
     assert math.hypot(truth['/a']['x'] - truth['/b']['x'], truth['/a']['y'] - truth['/b']['y']) > 150
     for ns, other in (('/a', '/b'), ('/b', '/a')):
