@@ -202,20 +202,29 @@ def _desired_density(args, snr: float, pool) -> tuple[dict, dict] | None:
 
 def add_table_arguments(parser) -> None:
     """Arguments of ``sonar_eval esc-table``."""
-    parser.add_argument('--runs', type=int, default=500, help='Monte Carlo runs per study (paper: 500)')
-    parser.add_argument('--seed', type=int, default=1)
+    from sonar_tracking.studies.evidence import add_seed_arguments
+    add_seed_arguments(parser, calibration='101', evaluation='201,202', runs=250, calibration_runs=200)
     parser.add_argument('--scans', type=int, default=0, help='scans per run, 0 = the paper\'s (50, 100)')
     parser.add_argument('--cft-target', type=float, default=0.005,
                         help='rate of CFT scans (Table 1) that sets T_c per method (default 0.005)')
+    parser.add_argument('--max-steps', type=int, default=3,
+                        help='grid steps T_c may move from the sweep\'s choice when checked inside the run (default 3)')
     add_pool_arguments(parser)
     parser.add_argument('--json', type=Path, default=None, help='write the results here')
 
 
 def main_table(args) -> int:
-    """Run the ESC comparison at the paper's operating point; print the docs/results table."""
-    from sonar_tracking.studies.esc_table import format_table, run_table
-    if args.runs < 2 or args.jobs < 1 or (args.scans and args.scans < 4) or not 0 < args.cft_target < 1:
-        print('error: need --runs >= 2, --jobs >= 1, --scans 0 or >= 4 and 0 < --cft-target < 1', file=sys.stderr)
+    """Run the ESC comparison at the paper's operating point, out of sample; print the docs/results tables."""
+    from sonar_tracking.studies.esc_table import TUNED_ON, format_table, run_table
+    from sonar_tracking.studies.evidence import SeedError, seed_split_from_args
+    try:
+        split = seed_split_from_args(args, tuned_on=TUNED_ON)
+    except SeedError as exc:
+        print(f'error: {exc}', file=sys.stderr)
         return 2
-    return table_command('esc-table', args, lambda pool: run_table(args.runs, args.seed, pool, args.scans or None,
-                                                                    args.cft_target), format_table)
+    if args.jobs < 1 or (args.scans and args.scans < 4) or not 0 < args.cft_target < 1 or args.max_steps < 0:
+        print('error: need --jobs >= 1, --scans 0 or >= 4, 0 < --cft-target < 1 and --max-steps >= 0', file=sys.stderr)
+        return 2
+    return table_command('esc-table', args, lambda pool: run_table(split, args.runs, args.calibration_runs, pool,
+                                                                    args.scans or None, args.cft_target,
+                                                                    max_steps=args.max_steps), format_table)

@@ -216,30 +216,36 @@ if __name__ == '__main__':  # pragma: no cover - use sonar_eval fls
 
 def add_table_arguments(parser: Any) -> None:
     """Arguments of ``sonar_eval fls-table``."""
+    from sonar_tracking.studies.evidence import add_seed_arguments
     from sonar_tracking.studies.fls_table import TABLE_METHODS, TABLE_SITUATIONS
     from sonar_tracking.studies.montecarlo import add_pool_arguments
-    parser.add_argument('--runs', type=int, default=1000, help='Monte Carlo runs per situation (default 1000)')
-    parser.add_argument('--seed', type=int, default=4000)
+    add_seed_arguments(parser, calibration='5101', evaluation='5201,5202', runs=300, calibration_runs=40)
     parser.add_argument('--situations', default=','.join(map(str, TABLE_SITUATIONS)),
                         help='comma list of Table 5 situations (default the crossings 8-11)')
     parser.add_argument('--methods', default=','.join(TABLE_METHODS),
                         help='comma list; the first is paired with each other (default af,af18,mf,wf)')
+    parser.add_argument('--hits', default='1,2,3,4',
+                        help='birth.confirm_hits values tried on the calibration runs (default 1,2,3,4)')
     add_pool_arguments(parser)
     parser.add_argument('--json', type=Path, default=None, help='write the results here')
 
 
 def main_table(args: Any) -> int:
-    """Run the FLS crossing comparison; print the docs/results table."""
+    """Run the FLS comparison out of sample; print the docs/results tables."""
+    from sonar_tracking.studies.evidence import seed_split_from_args
     from sonar_tracking.studies.fls_study import parse_methods
-    from sonar_tracking.studies.fls_table import format_table, run_table
+    from sonar_tracking.studies.fls_table import TUNED_ON, format_table, run_table
     try:
         methods = parse_methods(args.methods)
         situations = [int(n) for n in args.situations.split(',') if n.strip()]
+        hits = tuple(int(h) for h in args.hits.split(',') if h.strip())
+        split = seed_split_from_args(args, tuned_on=TUNED_ON)
     except ValueError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
-    if args.runs < 2 or args.jobs < 1 or not situations or any(not 1 <= n <= 14 for n in situations):
-        print('error: need --runs >= 2, --jobs >= 1 and situations among 1-14', file=sys.stderr)
+    if (args.jobs < 1 or not situations or any(not 1 <= n <= 14 for n in situations) or not hits
+            or any(not 1 <= h <= 1000 for h in hits) or len(set(hits)) != len(hits)):
+        print('error: need --jobs >= 1, situations among 1-14 and distinct --hits among 1-1000', file=sys.stderr)
         return 2
-    return table_command('fls-table', args, lambda pool: run_table(args.runs, args.seed, pool, situations, methods),
-                         format_table)
+    return table_command('fls-table', args, lambda pool: run_table(split, args.runs, args.calibration_runs, pool,
+                                                                    situations, methods, hits), format_table)

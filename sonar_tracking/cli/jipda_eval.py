@@ -1,4 +1,5 @@
-"""``sonar_eval jipda``: IMM-JIPDA against IMM-IPDA on crossing and parallel targets (the docs/results table)."""
+"""``sonar_eval jipda``: IMM-JIPDA against IMM-IPDA in and out of the trackers' model, out of sample
+(the docs/results table; :mod:`sonar_tracking.studies.jipda_table`)."""
 from __future__ import annotations
 
 import sys
@@ -12,23 +13,41 @@ __all__ = ['add_arguments', 'main_args']
 
 def add_arguments(parser) -> None:
     """Arguments of ``sonar_eval jipda``."""
-    parser.add_argument('--runs', type=int, default=500, help='Monte Carlo runs per geometry')
-    parser.add_argument('--seed', type=int, default=1)
+    from sonar_tracking.studies.evidence import add_seed_arguments
+    from sonar_tracking.studies.jipda_study import CONDITIONS
+    add_seed_arguments(parser, calibration='301', evaluation='401,402', runs=400, calibration_runs=150)
     parser.add_argument('--scans', type=int, default=0, help='scans per run, 0 = the study\'s (100)')
     parser.add_argument('--geometry', choices=('crossing', 'parallel', 'both'), default='both')
-    parser.add_argument('--unresolved', action='store_true',
-                        help='two targets detected within one resolution cell give one merged detection')
+    parser.add_argument('--conditions', default=','.join(CONDITIONS),
+                        help=f'comma list of {",".join(CONDITIONS)} (default all): where the trackers\' model is '
+                        'wrong (matched: nowhere)')
     add_pool_arguments(parser)
     parser.add_argument('--json', type=Path, default=None, help='write the results (and every run\'s figures) here')
 
 
 def main_args(args) -> int:
-    """Run the study (:mod:`sonar_tracking.studies.jipda_study`); print the docs/results table."""
-    from sonar_tracking.studies.jipda_study import GEOMETRIES, format_table, run_study
-    if args.runs < 2 or args.jobs < 1 or (args.scans and args.scans < 2):
-        print('error: need --runs >= 2, --jobs >= 1 and --scans 0 or >= 2', file=sys.stderr)
+    """Run the study; print the docs/results tables."""
+    from sonar_tracking.studies.evidence import SeedError, seed_split_from_args
+    from sonar_tracking.studies.jipda_study import CELLS, CONDITIONS
+    from sonar_tracking.studies.jipda_table import TUNED_ON, format_table, run_table
+    try:
+        split = seed_split_from_args(args, tuned_on=TUNED_ON)
+    except SeedError as exc:
+        print(f'error: {exc}', file=sys.stderr)
         return 2
-    geometries = GEOMETRIES if args.geometry == 'both' else (args.geometry,)
-    return table_command('jipda', args, lambda pool: run_study(args.runs, args.seed, pool, args.scans or None,
-                                                               geometries, unresolved=args.unresolved),
-                         format_table)
+    conditions = [c.strip() for c in args.conditions.split(',') if c.strip()]
+    bad = [c for c in conditions if c not in CONDITIONS]
+    if bad or not conditions or len(set(conditions)) != len(conditions):
+        print(f'error: --conditions: unknown or repeated {bad or conditions}; choose from {",".join(CONDITIONS)}',
+              file=sys.stderr)
+        return 2
+    if args.jobs < 1 or (args.scans and args.scans < 2):
+        print('error: need --jobs >= 1 and --scans 0 or >= 2', file=sys.stderr)
+        return 2
+    cells = tuple((g, c) for g, c in CELLS if c in conditions and args.geometry in ('both', g))
+    if not cells:
+        print('error: no cell left: parallel targets are never unresolved (use --geometry crossing or both)',
+              file=sys.stderr)
+        return 2
+    return table_command('jipda', args, lambda pool: run_table(split, args.runs, args.calibration_runs, pool,
+                                                               args.scans or None, cells), format_table)

@@ -2,9 +2,12 @@
 
 A track counts as confirmed at scan k for threshold T once its existence has exceeded T
 (confirmation is kept, as in the tracker). The tracker itself confirms at the grid's smallest T
-during the runs; T_c only changes which measurements may start new tracks (those of confirmed
-tracks may not), so one run serves every T_c at a small approximation, instead of the ESC paper's
-repeated Monte Carlo for every T_c (Algorithm 1, lines 7-14).
+during the runs, so one run serves every T_c instead of the ESC paper's repeated Monte Carlo for
+every T_c (Algorithm 1, lines 7-14). It is a screen, not the system at T_c: a tracker that confirms
+at T_c during the run starts tracks only from detections no confirmed track validated, and
+Scenario 2's ESC measures the clutter at the confirmed track of highest existence, so the runs at
+T_c differ (docs/experiments/2026-11-27-evidence.md); :mod:`.esc_table` checks the screened T_c
+inside the run.
 """
 from __future__ import annotations
 

@@ -18,8 +18,11 @@ Scenario 2's ESC measures the density near the confirmed track with the highest 
 
 With ``sweep_tc`` the trackers confirm at the lowest T_c of :data:`~.confirmation.T_GRID` and each
 run also records, per scan and per T_c of the grid, whether a true track is confirmed and how many
-false ones are (:class:`~.confirmation.ConfirmationSweep`), so that T_c can be chosen per method
-after the runs (:mod:`.esc_table`).
+false ones are (:class:`~.confirmation.ConfirmationSweep`), so that T_c can be screened per method
+after the runs (:mod:`.esc_table`). With ``confirm_by_method`` each method's tracker confirms at its
+own T_c during the run (track starts and Scenario 2's density measurement follow it), and every
+run records the T_c its tracker holds, read from the tracker's configuration (``confirm``). With
+``gospa`` each run also records per scan the GOSPA between the target and the confirmed tracks.
 """
 from __future__ import annotations
 
@@ -35,6 +38,7 @@ from sonar_tracking.sim import SimConfig, Simulator
 from sonar_tracking.sim.amplitude import snr_linear
 from sonar_tracking.sim.presets import HARBOUR_SONAR_XY
 from sonar_tracking.studies.confirmation import T_GRID, ConfirmationSweep
+from sonar_tracking.studies.evidence import GospaSpec
 from sonar_tracking.studies.metrics import (
     classify_tracks,
     confirmed_false_track_rate,
@@ -112,6 +116,17 @@ class StudyConfig:
     sigma_theta_deg: float = 0.1
     confirm: float | None = None          # the tracker's T_c (None: the tracker's default)
     sweep_tc: bool = False                # record every T_c of T_GRID (the tracker confirms at its lowest)
+    confirm_by_method: tuple[tuple[str, float], ...] = ()   # (method name, T_c) run inside the run
+    gospa: GospaSpec | None = None        # also record GOSPA per scan with these settings
+
+    def confirm_for(self, method: str) -> float | None:
+        """The T_c ``method``'s tracker is built with (None: the tracker's default)."""
+        own = dict(self.confirm_by_method)
+        if method in own:
+            return float(own[method])
+        if self.sweep_tc:
+            return float(T_GRID[0])
+        return self.confirm
 
     @property
     def models(self) -> str:
@@ -123,12 +138,11 @@ class StudyConfig:
         return resolution_cell_area(self.sigma_r, 2500.0 * math.radians(self.sigma_theta_deg))
 
 
-def _tracker(study: StudyConfig, pd: float) -> ImmIpdaTracker:
+def _tracker(study: StudyConfig, method: str, pd: float) -> ImmIpdaTracker:
     flat = {'imm.models': study.models, 'detection.probability': pd, **PAPER_INITIATION}
-    if study.sweep_tc:
-        flat['existence.confirm'] = float(T_GRID[0])
-    elif study.confirm is not None:
-        flat['existence.confirm'] = study.confirm
+    confirm = study.confirm_for(method)
+    if confirm is not None:
+        flat['existence.confirm'] = confirm
     return ImmIpdaTracker(TrackerConfig.from_flat(flat))
 
 
@@ -157,11 +171,15 @@ def run_once(study: StudyConfig, seed: np.random.SeedSequence) -> dict[str, dict
         det = ActiveDetector(DetectorConfig.from_flat(values), study.desired_density)
         pd = design_pd(study.snr_db, study.desired_density, study.v_rc) if method.esc else fixed_pd(method.threshold,
                                                                                                    study.snr_db)
-        trk = _tracker(study, pd)
+        trk = _tracker(study, method.name, pd)
         P0 = trk.initial_covariance(R0[0])
         k_scans = study.scans
         rec = {'has_ctt': np.zeros(k_scans, bool), 'error': np.full(k_scans, np.nan), 'threshold': np.zeros(k_scans),
                'clutter_density': np.zeros(k_scans), 'n_false': np.zeros(k_scans, int)}
+        if study.confirm_by_method:
+            rec['confirm'] = float(trk.config.existence.confirm)
+        if study.gospa is not None:
+            rec['gospa'] = np.zeros(k_scans)
         if study.sweep_tc:
             sweep = ConfirmationSweep()
             rec['has_ctt_t'] = np.zeros((k_scans, len(T_GRID)), bool)
@@ -180,6 +198,9 @@ def run_once(study: StudyConfig, seed: np.random.SeedSequence) -> dict[str, dict
                 label = classify_tracks(truths[k], est, P0).label
                 rec['has_ctt_t'][k], rec['n_false_t'][k] = sweep.update(tracks['track_id'].tolist(),
                                                                         tracks['existence'].tolist(), label)
+            if study.gospa is not None:
+                conf = tracks[tracks['confirmed'] != 0]
+                rec['gospa'][k] = study.gospa(truths[k][:, :2], np.column_stack([conf['x'], conf['y']])).distance
             rec['has_ctt'][k], rec['error'][k] = ev.has_ctt[0], ev.error[0]
             rec['threshold'][k], rec['clutter_density'][k], rec['n_false'][k] = r.threshold, r.mean_density, ev.n_false
             focus = best_track_focus(tracks)

@@ -10,7 +10,11 @@ same particles: AF differs from WF only after a frame where it chose MF, and the
 measures the fusion rule, not the draws (with a stream per method, the draws alone move a 30-run
 mean CLE by up to 0.25 m on situation 9: ``docs/experiments/2026-11-21-fls-gpf-study.md``).
 
-Scoring, per target and frame, against the target's state as imaged (:mod:`.fls_frames`):
+Scoring, per target and frame, against the target's state as imaged (:mod:`.fls_frames`), of every
+track, or with ``score_confirmed`` of the confirmed tracks only (what the tracker reports as
+confirmed); ``confirm_by_method`` builds each method's tracker with its own ``birth.confirm_hits``
+(each run records the value its tracker holds), and ``gospa`` records per frame the GOSPA between
+the targets and the scored tracks:
 
 * **Owner.** A target is followed by the track that first came within ``gate`` metres of it (one
   track per target, chosen jointly by least distance among tracks no other target owns); it keeps
@@ -49,6 +53,7 @@ from sonar_tracking.core.fls import FlsConfig
 from sonar_tracking.core.gpf import EkfConfig, EkfTracker, GpfConfig, GpfTracker
 from sonar_tracking.core.gpf.management import gated_assignment
 from sonar_tracking.sim.simulator import child_seeds
+from sonar_tracking.studies.evidence import GospaSpec
 from sonar_tracking.studies.fls_frames import TrackingFrame, simulate_tracking_frames
 from sonar_tracking.studies.metrics import center_location_error, paired_difference
 
@@ -94,26 +99,36 @@ class FlsStudy:
     gate: float = 1.5
     cross_distance: float = 2.0
     sim_overrides: tuple[tuple[str, object], ...] = ()
+    confirm_by_method: tuple[tuple[str, int], ...] = ()   # (method, birth.confirm_hits) run inside the run
+    score_confirmed: bool = False         # score the confirmed tracks only (else every track)
+    gospa: GospaSpec | None = None        # also record GOSPA per frame (targets against the scored tracks)
 
 
 def _tracker(study: FlsStudy, method: str, rng: np.random.Generator):
+    own = dict(study.confirm_by_method)
+    base = study.config
+    if method in own:
+        base = base.from_flat({'birth.confirm_hits': int(own[method])}, base=base)
     if method == 'ekf':
-        return EkfTracker(study.config, study.ekf)
+        return EkfTracker(base, study.ekf)
     flat = {'fusion.mode': {'pf': 'mf', 'af18': 'af'}.get(method, method)}
     if method == 'af18':
         flat['fusion.switch'] = 'cues'
-    cfg = study.config.from_flat(flat, base=study.config)
+    cfg = study.config.from_flat(flat, base=base)
     return GpfTracker(cfg, rng, method='sir' if method == 'pf' else 'gpf', feature_config=study.fls.features)
 
 
 def run_methods(study: FlsStudy, frames: list[TrackingFrame], seed: np.random.SeedSequence,
-                corrections: dict | None = None) -> dict[str, list]:
+                corrections: dict | None = None, held: dict | None = None) -> dict[str, list]:
     """Every method's track records per frame on the same frames; ``corrections`` (when given)
-    receives per method the track-frames corrected by the image, by a region, and coasting."""
+    receives per method the track-frames corrected by the image, by a region, and coasting; ``held``
+    (when given) the ``birth.confirm_hits`` each method's tracker holds, read from its configuration."""
     out = {}
     for method in study.methods:
         rng = np.random.default_rng(seed)     # the same stream for every method: see module docstring
         tracker = _tracker(study, method, rng)
+        if held is not None:
+            held[method] = int(tracker.config.birth.confirm_hits)
         per_frame, counts = [], np.zeros(3, dtype=np.int64)
         for tf in frames:
             f = tf.frame
@@ -211,12 +226,19 @@ def run_once(study: FlsStudy, seed: np.random.SeedSequence) -> dict:
     sim_seed, track_seed = child_seeds(seed, 2)  # not seed.spawn: that changes the caller's sequence
     frames = simulate_tracking_frames(study.scenario, sim_seed, study.fls, study.preset, **dict(study.sim_overrides))
     corrections: dict = {}
-    tracks = run_methods(study, frames, track_seed, corrections)
-    scores = {m: score_run(frames, recs, study.gate, study.cross_distance) for m, recs in tracks.items()}
+    held: dict = {}
+    tracks = run_methods(study, frames, track_seed, corrections, held)
+    scored = ({m: [r[r['confirmed'] != 0] for r in recs] for m, recs in tracks.items()} if study.score_confirmed
+              else tracks)
+    scores = {m: score_run(frames, recs, study.gate, study.cross_distance) for m, recs in scored.items()}
     truth = np.stack([tf.truth for tf in frames]) if frames else np.zeros((0, 0, 4))
     est = {m: [np.column_stack([r['track_id'], r['x'], r['y']]) for r in recs] for m, recs in tracks.items()}
-    return {'stamps': np.array([tf.stamp for tf in frames]), 'ids': frames[0].ids if frames else np.zeros(0),
-            'truth': truth, 'scores': scores, 'tracks': est, 'corrections': corrections}
+    out = {'stamps': np.array([tf.stamp for tf in frames]), 'ids': frames[0].ids if frames else np.zeros(0),
+           'truth': truth, 'scores': scores, 'tracks': est, 'corrections': corrections, 'confirm': held}
+    if study.gospa is not None:
+        out['gospa'] = {m: np.array([study.gospa(tf.truth[:, :2], np.column_stack([r['x'], r['y']])).distance
+                                     for tf, r in zip(frames, recs)]) for m, recs in scored.items()}
+    return out
 
 
 def summarise(study: FlsStudy, runs: list[dict]) -> dict:

@@ -47,28 +47,49 @@ def test_desired_density_table_is_usable_by_the_detector(tmp_path):
     assert yaml.safe_load(text)['models'] == 'cv'
 
 
-def test_esc_table_reduced_prints_the_table_and_keeps_its_figures_consistent(tmp_path, capsys):
+ESC_TABLE = ['esc-table', '--runs', '2', '--calibration-runs', '3', '--scans', '8', '--max-steps', '1',
+             '--calibration-seeds', '2', '--seeds', '4,5', '--jobs', '1']
+
+
+def test_esc_table_runs_every_tracker_at_its_chosen_t_c_and_keeps_its_figures_consistent(tmp_path, capsys):
+    """Acceptance: the JSON records, per method, the T_c read back from each evaluation run's tracker,
+    and it is the T_c chosen on the calibration seeds; the table's figures are those of the runs."""
     out = tmp_path / 'table.json'
-    assert main(['esc-table', '--runs', '3', '--scans', '8', '--seed', '2', '--jobs', '1', '--json', str(out)]) == 0
+    assert main([*ESC_TABLE, '--json', str(out)]) == 0
     text = capsys.readouterr().out
     r = json.loads(out.read_text())
+    assert r['seeds'] == {'calibration': [2], 'evaluation': [4, 5], 'tuned_on': [1, 7, 77]}
     assert [s['name'] for s in r['studies']] == ['Scenario 1, lambda 1.2', 'Scenario 1, lambda 0.8', 'Scenario 2']
-    assert text.count('| Scenario 1, lambda 1.2 |') == 4 and text.count('| Scenario 2 |') == 3
+    assert r['gospa'] == {'c': 20.0, 'p': 2.0, 'alpha': 2.0} and r['correction']['intervals'] == 16
+    assert text.count('| Scenario 1, lambda 1.2 | ') == 4 + 6 and text.count('| Scenario 2 | ') == 3 + 4
     for s in r['studies']:
-        esc = s['methods']['esc']
-        for name, m in s['methods'].items():
-            assert len(m['cttr_run']) == 3
-            assert m['cft_scan_rate'] <= m['cft_per_scan'] + 1e-12   # a CFT scan holds one or more CFTs
-            if m['meets_target']:
-                assert m['cft_scan_rate'] <= 0.005
-            if name != 'esc':
-                want = np.mean(np.subtract(esc['cttr_run'], m['cttr_run']))
-                assert m['paired_first_minus']['difference'] == pytest.approx(want)
+        for m in s['methods'].values():
+            rb, cal = m['t_c_read_back'], m['calibration']
+            assert rb['read_back'] == [cal['t_c']] and rb['equal'] and rb['runs'] == 4
+            assert cal['t_c'] == cal['path'][-1]['t_c'] or cal['meets_target']
+            assert any(p['t_c'] == cal['t_c'] for p in cal['path'])
+            for seed in ('4', '5'):
+                ev = m['evaluation'][seed]
+                assert len(ev['per_run']['cttr']) == 2
+                assert ev['cttr'] == pytest.approx(np.mean(ev['per_run']['cttr']), abs=1e-5)
+        first = s['methods']['esc']['evaluation']
+        for c in s['comparisons']:
+            other = s['methods'][c['second']]['evaluation']
+            for seed in ('4', '5'):
+                want = np.mean(np.subtract(first[seed]['per_run'][c['metric']], other[seed]['per_run'][c['metric']]))
+                assert c['seeds'][seed]['difference'] == pytest.approx(want, abs=1e-4)
+            assert c['pooled']['runs'] == 4 and c['pooled']['level'] == pytest.approx(1 - 0.05 / 16)
 
 
-def test_esc_table_refuses_bad_arguments(capsys):
-    assert main(['esc-table', '--runs', '1']) == 2
-    assert '--runs >= 2' in capsys.readouterr().err
+@pytest.mark.parametrize('argv, message', [
+    (['--calibration-seeds', '4', '--seeds', '4,5'], 'overlap: [4]'),
+    (['--seeds', '201'], 'at least 2 evaluation seeds'),
+    (['--seeds', '1,202'], 'tuned on'),
+    (['--runs', '1'], '--runs'),
+])
+def test_esc_table_refuses_seed_sets_that_are_not_out_of_sample(argv, message, capsys):
+    assert main(['esc-table', *argv]) == 2
+    assert message in capsys.readouterr().err
 
 
 @pytest.mark.parametrize('argv', [['--help'], ['esc-table', '--help'], ['select-features', '--help']])

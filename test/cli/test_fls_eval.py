@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from sonar_tracking.cli.fls_eval import SEA_TRIAL, study_for
@@ -59,32 +60,45 @@ def test_argument_errors_from_the_parser(tmp_path, capsys, args):
     assert 'error' in capsys.readouterr().err
 
 
-def test_fls_table_reduced_prints_the_table_and_agrees_with_sonar_eval_fls(tmp_path, capsys):
-    """The docs/results table's command, reduced: every figure is the one `sonar_eval fls` gives for the
-    same situation, runs and seed, and the corrections add up (the EKF corrects only by regions)."""
-    table, single = tmp_path / 'table.json', tmp_path / 'fls.json'
-    assert main(['fls-table', '--runs', '3', '--seed', '5', '--situations', '8', '--methods', 'af,af18,ekf',
-                 '--jobs', '1', '--json', str(table)]) == 0
+FLS_TABLE = ['fls-table', '--runs', '2', '--calibration-runs', '2', '--situations', '8', '--methods', 'af,wf,ekf',
+             '--hits', '1,3', '--calibration-seeds', '3', '--seeds', '5,6', '--jobs', '1']
+
+
+def test_fls_table_ranks_on_capped_cle_at_each_methods_own_confirmation(tmp_path, capsys):
+    """The docs/results table's command, reduced: confirm_hits per method chosen on the calibration seed
+    (least GOSPA) and read back from every evaluation run's tracker; methods ranked on the capped CLE,
+    the other figures beside it, every figure the mean of its runs."""
+    out = tmp_path / 'table.json'
+    assert main([*FLS_TABLE, '--json', str(out)]) == 0
     printed = capsys.readouterr().out
-    assert '| situation | af CLE | af18 CLE | ekf CLE | af − af18 | af − ekf |' in printed
-    assert '\n| 8 | ' in printed
-    assert main(['fls', '--situation', '8', '--runs', '3', '--seed', '5', '--methods', 'af,af18,ekf', '--jobs', '1',
-                 '--json', str(single)]) == 0
-    rows = json.loads(table.read_text())['situations'][0]['methods']
-    ref = json.loads(single.read_text())['methods']
-    for m in ('af', 'af18', 'ekf'):
-        runs = [v for v in ref[m]['cle_run'] if v is not None]
-        assert rows[m]['cle'] == pytest.approx(sum(runs) / len(runs), rel=1e-12)
-        assert rows[m]['identity_kept_rate'] == ref[m]['identity_kept_rate']
-        c = rows[m]['corrections']
-        assert c == ref[m]['corrections'] and c['image'] + c['region'] > 0 and c['coasting'] >= 0
-    assert rows['af18']['paired_first_minus'] == ref['af18']['paired_with_first']
-    assert rows['ekf']['corrections']['image'] == 0 and rows['ekf']['corrections']['image_share'] == 0.0
-    assert 0.0 < rows['af']['corrections']['image_share'] < 1.0
+    assert ('| situation | rank | method | confirm_hits (read back) | capped CLE [m] | lost frames / target | '
+            'track breaks / target | GOSPA [m] | CLE of tracked frames [m] | identity kept | image share |') in printed
+    r = json.loads(out.read_text())
+    assert r['gospa'] == {'c': 1.5, 'p': 2.0, 'alpha': 2.0} and r['correction']['intervals'] == 8
+    s = r['situations'][0]
+    capped = {m: s['methods'][m]['pooled']['cle_capped'] for m in ('af', 'wf', 'ekf')}
+    assert s['ranking'] == sorted(capped, key=capped.get)
+    for row in s['methods'].values():
+        cal = row['calibration']
+        assert cal['confirm_hits'] == [1, 3][int(np.argmin(cal['gospa_by_value']))]
+        rb = row['confirm_hits_read_back']
+        assert rb['read_back'] == [cal['confirm_hits']] and rb['equal'] and rb['runs'] == 4
+        runs = row['per_run']['5']['cle_capped'] + row['per_run']['6']['cle_capped']
+        assert row['pooled']['cle_capped'] == pytest.approx(np.mean(runs), abs=1e-5)
+        assert all(0.0 <= v <= s['gate'] for v in runs)
+        assert row['pooled']['lost'] >= 0 and row['pooled']['breaks'] >= 0
+        c = row['corrections']
+        assert c['image'] + c['region'] > 0 and c['coasting'] >= 0
+    assert s['methods']['ekf']['corrections']['image'] == 0
+    assert [(c['second'], c['metric']) for c in s['comparisons']] == [
+        (m, k) for m in ('wf', 'ekf') for k in ('cle_capped', 'lost', 'breaks', 'gospa')]
+    assert all(c['heavy_tailed'] and set(c['seeds']) == {'5', '6'} for c in s['comparisons'])
 
 
-def test_fls_table_refuses_bad_arguments(capsys):
-    assert main(['fls-table', '--runs', '1']) == 2
-    assert main(['fls-table', '--runs', '3', '--situations', '15']) == 2
-    assert main(['fls-table', '--runs', '3', '--methods', 'af,xx']) == 2
+@pytest.mark.parametrize('argv', [['--runs', '1'], ['--runs', '3', '--situations', '15'],
+                                  ['--runs', '3', '--methods', 'af,xx'], ['--hits', '0,2'],
+                                  ['--calibration-seeds', '5201', '--seeds', '5201,5202'],
+                                  ['--seeds', '4000,5202']])
+def test_fls_table_refuses_bad_arguments(argv, capsys):
+    assert main(['fls-table', *argv]) == 2
     assert 'error' in capsys.readouterr().err

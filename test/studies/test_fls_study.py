@@ -179,6 +179,24 @@ def test_af18_is_eq_18_alone_and_af_keeps_the_crossing_switch():
     assert (af.mode, af.switch) == ('af', 'crossing') and (af18.mode, af18.switch) == ('af', 'cues')
 
 
+def test_each_method_confirms_with_its_own_setting_inside_the_run_and_only_confirmed_tracks_score():
+    """``confirm_by_method`` builds each tracker with its own ``birth.confirm_hits`` (recorded per run
+    from the tracker's configuration); with ``score_confirmed`` an EKF that needs four hits has no
+    confirmed track in the first three frames, so GOSPA there is the two missed targets' (c), while
+    scoring every track sees its tentative ones."""
+    from dataclasses import replace
+
+    from sonar_tracking.studies.fls_study import FlsStudy, run_once
+    from sonar_tracking.studies.fls_table import GOSPA
+    study = FlsStudy('fls8', methods=('ekf', 'af'), gospa=GOSPA, confirm_by_method=(('ekf', 4), ('af', 1)))
+    seed = np.random.SeedSequence(3).spawn(1)[0]
+    confirmed, every = run_once(replace(study, score_confirmed=True), seed), run_once(study, seed)
+    assert confirmed['confirm'] == {'ekf': 4, 'af': 1}
+    np.testing.assert_allclose(confirmed['gospa']['ekf'][:3], GOSPA.c)
+    assert every['gospa']['ekf'][0] < GOSPA.c
+    np.testing.assert_array_equal(confirmed['gospa']['af'], every['gospa']['af'])   # one hit: all confirmed
+
+
 def test_corrections_of_a_frame_from_the_tracker_report():
     from sonar_tracking.studies.fls_study import _corrections
     assert _corrections(seen=4, missed=3, reseeded=2, regions_only=False) == (4, 2, 1)
