@@ -401,7 +401,7 @@ def test_two_harbour_stacks_in_namespaces_track_their_own_targets_without_cross_
             node.destroy_subscription(s)
     for ns, p in procs.items():
         assert p.returncode == 0, outs[ns]
-        assert 'finished after 10 sectors' in outs[ns], outs[ns]
+        assert 'finished after 30 sectors' in outs[ns], outs[ns]
     truth = {ns: ma.cloud_to_array(got[f'{ns}/sonar/truth'][-1])[0] for ns in scenario}
     assert math.hypot(truth['/a']['x'] - truth['/b']['x'], truth['/a']['y'] - truth['/b']['y']) > 150
     for ns, other in (('/a', '/b'), ('/b', '/a')):
