@@ -2,7 +2,8 @@
 
 Subscribes ``sonar/sector`` + ``sonar/sector_info`` (paired by stamp), ``platform/odometry``
 (sensor pose; without it the ``sonar_pose`` parameter) and ``tracks`` (for
-``esc.density_source: best_track``). Publishes ``detections``, ``detector/threshold`` (the
+``esc.density_source: best_track``, and the confirmed tracks whose detections ESC leaves out with
+``esc.exclude_radius``). Publishes ``detections``, ``detector/threshold`` (the
 threshold applied to the scan just processed; depth 1, transient local, so a late reader gets the
 current value; with a CFAR ``threshold.method`` it is the CFAR scale alpha, dimensionless: a cell is
 a detection where its intensity exceeds alpha times the level of its training cells),
@@ -36,6 +37,7 @@ from sonar_tracking.core.detection import (
     DetectionInputError,
     DetectorConfig,
     best_track_focus,
+    confirmed_positions,
     resolve_desired_density,
 )
 from sonar_tracking.resources import config_path
@@ -79,6 +81,7 @@ class ActiveDetectorNode(SonarNode):
         self.detector = ActiveDetector(detector_config(self.config), desired_density(self.config))
         self.warm_up(warmup.detector, self.detector.config, self.detector.desired_density)
         self.best_track: tuple[float, float] | None = None
+        self.tracked: np.ndarray | None = None      # confirmed tracks' positions (esc.exclude_radius)
         self.input = SectorInput(self, self._process, self._on_reset)
         self.subscribe(PointCloud2, 'tracks', self._on_tracks, 10)
         self.pub_det = self.create_publisher(PointCloud2, 'detections', output_profile())
@@ -118,17 +121,20 @@ class ActiveDetectorNode(SonarNode):
             self.say('error', f'tracks message without x, y, existence, confirmed: {tracks.dtype.names}', 'bad_tracks')
             return
         self.best_track = best_track_focus(tracks)
+        self.tracked = confirmed_positions(tracks)
 
     # -- processing --------------------------------------------------------------------------
     def _on_reset(self) -> None:
         self.detector.reset()
         self.best_track = None
+        self.tracked = None
 
     def _process(self, stamp: int, amplitudes: np.ndarray, geometry, pose, frame_id: str) -> bool:
         started = time.perf_counter()
         focus = self.best_track if self.config.esc.density_source == 'best_track' else None
         try:
-            result = self.detector.process(amplitudes, geometry, pose, focus, stamp=stamp / 1e9)
+            result = self.detector.process(amplitudes, geometry, pose, focus, stamp=stamp / 1e9,
+                                           tracked_xy=self.tracked)
         except DetectionInputError as exc:
             self.say('error', f'sector at {stamp / 1e9:.3f} s dropped: {exc}', 'bad_values')
             return False

@@ -167,29 +167,71 @@ class DraggedTrajectory(Trajectory):
 
 
 class WaypointTrajectory(Trajectory):
-    """Straight legs at constant speed through ``points``, from the last back to the first, round and round.
+    """Legs at constant speed through ``points``, from the last back to the first, round and round.
 
-    ``speeds`` [m/s] has one value per leg (leg k from point k to point k + 1); the velocity changes at
-    once at a waypoint. The heading is the direction of motion.
+    ``speeds`` [m/s] has one value per leg (leg k from point k to point k + 1). With ``turn_radius``
+    0 the velocity changes at once at a waypoint; with ``turn_radius`` rho > 0 each corner is cut by
+    the circular arc of radius rho tangent to both legs (shrunk where the legs are too short for it:
+    the arc never takes more than half of either leg), flown at the next leg's speed, so the
+    heading turns at ``speed / rho``. The heading is the direction of motion.
     """
 
-    def __init__(self, points, speeds) -> None:
+    def __init__(self, points, speeds, turn_radius: float = 0.0) -> None:
         self.points = np.asarray(points, dtype=float)
         legs = np.roll(self.points, -1, axis=0) - self.points
         lengths = np.hypot(legs[:, 0], legs[:, 1])
         speeds = np.broadcast_to(np.asarray(speeds, dtype=float), lengths.shape)
-        if np.any(lengths <= 0) or np.any(speeds <= 0):
-            raise ValueError('waypoints must differ and speeds be > 0')
-        durations = lengths / speeds
-        self.velocities = legs / durations[:, None]
-        self.starts = np.concatenate([[0.0], np.cumsum(durations)[:-1]])
-        self.period = float(durations.sum())
+        if np.any(lengths <= 0) or np.any(speeds <= 0) or not turn_radius >= 0:
+            raise ValueError('waypoints must differ, speeds be > 0 and the turn radius >= 0')
+        n = len(lengths)
+        u = legs / lengths[:, None]
+        # Corner k (at point k) joins leg k-1 to leg k: the arc starts `cut` before the point on leg
+        # k-1 and ends `cut` after it on leg k.
+        cut, radius, turn = np.zeros(n), np.zeros(n), np.zeros(n)
+        for k in range(n):
+            a, b = u[k - 1], u[k]
+            angle = math.atan2(a[0] * b[1] - a[1] * b[0], float(a @ b))     # signed turn
+            if turn_radius > 0 and abs(angle) > 1e-9:
+                t = math.tan(abs(angle) / 2)
+                room = 0.5 * min(lengths[k - 1], lengths[k])
+                radius[k] = min(turn_radius, room / t)
+                cut[k], turn[k] = radius[k] * t, angle
+        # Segments: (kind, start time, duration, data); lines (p0, v), arcs (centre, r, phi0, omega).
+        self._segments: list[tuple[str, float, float, tuple]] = []
+        t0 = 0.0
+        for k in range(n):
+            if cut[k] > 0:
+                a, b = u[k - 1], u[k]
+                side = math.copysign(1.0, turn[k])                          # +1: a left turn
+                normal = np.array([-a[1], a[0]]) * side
+                start = self.points[k] - a * cut[k]
+                centre = start + normal * radius[k]
+                phi0 = math.atan2(start[1] - centre[1], start[0] - centre[0])
+                omega = side * speeds[k] / radius[k]
+                dur = abs(turn[k]) * radius[k] / speeds[k]
+                self._segments.append(('arc', t0, dur, (centre, radius[k], phi0, omega)))
+                t0 += dur
+            length = lengths[k] - cut[k] - cut[(k + 1) % n]
+            p0 = self.points[k] + u[k] * cut[k]
+            dur = length / speeds[k]
+            self._segments.append(('line', t0, dur, (p0, u[k] * speeds[k])))
+            t0 += dur
+        self.starts = np.array([seg[1] for seg in self._segments])
+        self.period = t0
 
     def state(self, t: float) -> np.ndarray:
         t = max(0.0, float(t)) % self.period
         k = int(np.searchsorted(self.starts, t, side='right')) - 1
-        p = self.points[k] + self.velocities[k] * (t - self.starts[k])
-        return np.array([p[0], p[1], self.velocities[k, 0], self.velocities[k, 1]])
+        kind, start, _, data = self._segments[k]
+        dt = t - start
+        if kind == 'line':
+            p0, v = data
+            p = p0 + v * dt
+            return np.array([p[0], p[1], v[0], v[1]])
+        centre, r, phi0, omega = data
+        phi = phi0 + omega * dt
+        c, s = math.cos(phi), math.sin(phi)
+        return np.array([centre[0] + r * c, centre[1] + r * s, -r * omega * s, r * omega * c])
 
 
 class RelativeTrajectory(Trajectory):

@@ -12,6 +12,7 @@ from sonar_tracking.core.detection.detector import (
                        ScmdeConfig,
                        ThresholdConfig,
                        best_track_focus,
+                       confirmed_positions,
 )
 from sonar_tracking.core.detection.esc import ExtremumSeekingController, compandor, sign_block
 from sonar_tracking.core.detection.scmde import PolarWindow, scmde
@@ -19,4 +20,5 @@ from sonar_tracking.core.detection.scmde import PolarWindow, scmde
 __all__ = ['CellDetections', 'threshold_cells', 'convert_measurements', 'DesiredDensityTable', 'TableError',
            'ActiveDetector', 'CellConfig', 'DetectionInputError', 'DetectorConfig', 'EscConfig', 'ScanResult',
            'ScmdeConfig', 'ThresholdConfig', 'ExtremumSeekingController', 'compandor', 'sign_block',
-           'PolarWindow', 'scmde', 'resolve_desired_density', 'best_track_focus']
+           'PolarWindow', 'scmde', 'resolve_desired_density', 'best_track_focus',
+           'confirmed_positions']

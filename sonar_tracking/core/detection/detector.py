@@ -25,7 +25,12 @@ For each sector (one scan of the harbour sonar):
    resolution cell, ``cell / (2 sqrt 3)``, which is the harbour sonar's measurement noise. A
    detection spanning ``L_r`` bins and ``L_b`` beams is uniform over that extent instead:
    ``sigma_r^2 + (L_r^2 - 1) dr^2 / 12`` (and likewise in bearing), which is ``(L_r dr)^2 / 12``
-   with the default ``sigma_r``; a single cell keeps ``sigma_r`` exactly;
+   with the default ``sigma_r``; a single cell keeps ``sigma_r`` exactly. With ``cells.target_size``
+   L > 0 both standard deviations are at least ``L / (2 sqrt 3)`` (in range, and across at the
+   detection's range): the rule for an extended target that breaks into several blobs. Each blob
+   stays a detection, spread over the target, so all fall into the target track's gate, start no
+   track there (``init.exclude: all``) and are weighed by the track's association, instead of being
+   merged over a distance that would also merge neighbouring small targets;
 5. each detection gets its clutter density by SCMDE (:mod:`.scmde`) over the sector window. When
    ``max_detections`` cut some, the strongest detections are not a Poisson sample of the scan, so
    every detection gets the count estimate instead: all detections found / window area (the SCMDE
@@ -35,7 +40,10 @@ For each sector (one scan of the harbour sonar):
    track with the highest existence probability -- and sets the threshold of the next scan; with
    ``esc.period`` N > 1 it takes the mean density of N scans and updates once every N scans (an
    imaging sonar at 20 frames a second sees too few false detections in one frame to measure a
-   density).
+   density). With ``esc.exclude_radius`` r > 0 the scan's density is instead the count of the
+   detections farther than r from every confirmed track over the window's area outside those discs:
+   at frame rate a target's own detections are as many as the false ones and would otherwise raise
+   the threshold until the target is lost.
    Around the track, the density is the number of detections within ``esc.local_radius`` divided
    by the area of that disc inside the sector: an average of the detections' own SCMDE values
    would be dominated by a denser neighbouring region (it has more detections, each with a high
@@ -74,7 +82,7 @@ from sonar_tracking.core.structure import (
 )
 
 __all__ = ['ThresholdConfig', 'CellConfig', 'ScmdeConfig', 'EscConfig', 'DetectorConfig', 'ActiveDetector',
-           'ScanResult', 'DetectionInputError', 'best_track_focus']
+           'ScanResult', 'DetectionInputError', 'best_track_focus', 'confirmed_positions']
 
 _SQRT12 = 2.0 * math.sqrt(3.0)
 _DISC = sunflower(256)
@@ -128,6 +136,10 @@ class CellConfig(Config):
     sigma_r: float = setting(0.0, 'range std of a detection; 0 = range bin / (2 sqrt 3)', unit='m', low=0.0, high=1e4)
     sigma_theta_deg: float = setting(0.0, 'bearing std of a detection; 0 = beam step / (2 sqrt 3)', unit='deg',
                                      low=0.0, high=45.0)
+    target_size: float = setting(0.0, 'extended targets: a detection is taken as uniform over at least this length '
+                                 'in range and across, so its position std is at least target_size / (2 sqrt 3) '
+                                 '(which part of a diver crosses the threshold changes frame to frame); 0 = off',
+                                 unit='m', low=0.0, high=1e4)
     conversion: str = setting('linearized', "polar to Cartesian: 'linearized' (eqs. 8-10) or 'unbiased' (ref. 23)",
                               choices=('linearized', 'unbiased'))
 
@@ -156,6 +168,11 @@ class EscConfig(Config):
                                   choices=('sector', 'best_track'))
     local_radius: float = setting(200.0, 'best_track: the density is measured in a disc of this radius around the '
                                   'track', unit='m', low=0.0, low_open=True, high=1e5)
+    exclude_radius: float = setting(0.0, 'detections within this distance of a confirmed track are its target\'s, not '
+                                    'clutter: the ESC input is then the count of the other detections over the window '
+                                    'area outside those discs (0 = every detection counts, as in the paper; needed '
+                                    'where a frame holds about as many false detections as targets)', unit='m',
+                                    low=0.0, high=1e5)
     period: int = setting(1, 'scans per ESC update: ESC sees the mean density of this many scans (1: every scan, as '
                           'in the paper; imaging sonars see too few false detections in one frame)', low=1, high=10000)
 
@@ -280,12 +297,15 @@ class ActiveDetector:
 
     def process(self, amplitudes: np.ndarray, geometry: SectorGeometry,
                 pose: tuple[float, float, float] = (0.0, 0.0, 0.0),
-                focus_xy: tuple[float, float] | None = None, stamp: float | None = None) -> ScanResult:
+                focus_xy: tuple[float, float] | None = None, stamp: float | None = None,
+                tracked_xy: np.ndarray | None = None) -> ScanResult:
         """Detect in one sector taken from ``pose`` (sensor x, y, yaw in the world frame).
 
         ``amplitudes`` are the sensor's values (bins x beams, any numeric dtype), decoded by
         ``intensity``. ``focus_xy``: world position of the best track, used when
         ``esc.density_source`` is ``best_track`` (the sector mean is used while there is none).
+        ``tracked_xy``: ``(K, 2)`` world positions of the confirmed tracks, whose detections ESC
+        leaves out with ``esc.exclude_radius`` > 0 (non-finite rows are ignored).
         ``stamp`` [s] times the structure background; without it scans are ``geometry.scan_time``
         (1 s if 0) apart. Raises DetectionInputError for a sector that cannot be used (nothing
         changes then).
@@ -329,6 +349,10 @@ class ActiveDetector:
         sigma_b = math.radians(cfg.cells.sigma_theta_deg) or geometry.angle_increment / _SQRT12
         sigma_rs = _extent_sigma(sigma_r, cells.span_rows[keep], dr)
         sigma_bs = _extent_sigma(sigma_b, cells.span_cols[keep], geometry.angle_increment)
+        if cfg.cells.target_size > 0:
+            floor = cfg.cells.target_size / _SQRT12
+            sigma_rs = np.maximum(sigma_rs, floor)
+            sigma_bs = np.maximum(sigma_bs, floor / np.maximum(r, dr))
         xy, cov = convert_measurements(r, b, sigma_rs, sigma_bs, pose, cfg.cells.conversion == 'unbiased')
         r_hi = geometry.range_max + dr / 2
         r_lo = min(max(0.0, geometry.range_min - dr / 2, cfg.intensity.blank_range), r_hi)
@@ -341,7 +365,7 @@ class ActiveDetector:
         else:
             sensor_xy = np.stack([r * np.cos(b), r * np.sin(b)], axis=-1)
             rho = scmde(sensor_xy, cfg.scmde.order, window if cfg.scmde.edge_correction else None)
-        density = self._esc_input(xy, rho, focus_xy, pose, window)
+        density = self._esc_input(xy, rho, focus_xy, pose, window, tracked_xy)
         self.last_density = density
         self.scans += 1
         if self.enabled:
@@ -394,8 +418,11 @@ class ActiveDetector:
         drop[cells.cell_group[hit]] = True
         return drop
 
-    def _esc_input(self, xy: np.ndarray, rho: np.ndarray, focus_xy, pose, window: PolarWindow) -> float:
+    def _esc_input(self, xy: np.ndarray, rho: np.ndarray, focus_xy, pose, window: PolarWindow,
+                   tracked_xy: np.ndarray | None = None) -> float:
         esc = self.config.esc
+        if esc.exclude_radius > 0 and esc.density_source == 'sector':
+            return _untracked_density(xy, tracked_xy, esc.exclude_radius, pose, window)
         if esc.density_source == 'best_track' and focus_xy is not None:
             radius = esc.local_radius
             # The disc's area inside the sector, from the same sunflower points SCMDE uses.
@@ -409,11 +436,46 @@ class ActiveDetector:
         return float(rho.mean()) if len(rho) else 0.0
 
 
+def _untracked_density(xy: np.ndarray, tracked_xy: np.ndarray | None, radius: float,
+                       pose: tuple[float, float, float], window: PolarWindow) -> float:
+    """Detections farther than ``radius`` from every confirmed track, over the window's area outside
+    the tracks' discs (the count estimate, unbiased for Poisson clutter)."""
+    area = window.area
+    tracks = np.zeros((0, 2)) if tracked_xy is None else np.asarray(tracked_xy, dtype=float).reshape(-1, 2)
+    tracks = tracks[np.isfinite(tracks).all(axis=1)]
+    if not len(tracks):
+        return len(xy) / area
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    fx, fy = tracks[:, 0] - pose[0], tracks[:, 1] - pose[1]
+    inside = window.disc_fraction(c * fx + s * fy, -s * fx + c * fy, np.full(len(tracks), radius), _DISC)
+    area = max(area - math.pi * radius * radius * float(np.sum(inside)), 0.05 * area)
+    if len(xy):
+        d2 = (xy[:, None, 0] - tracks[None, :, 0]) ** 2 + (xy[:, None, 1] - tracks[None, :, 1]) ** 2
+        n = int(np.count_nonzero(d2.min(axis=1) > radius * radius))
+    else:
+        n = 0
+    return n / area
+
+
 def _group_peaks(amplitudes: np.ndarray, cells: CellDetections) -> np.ndarray:
     """The largest amplitude among each detection's cells (CFAR groups cells on the normalised image)."""
     peak = np.zeros(len(cells))
     np.maximum.at(peak, cells.cell_group, amplitudes[cells.cell_rows, cells.cell_cols].astype(float))
     return peak
+
+
+#: Most confirmed tracks whose detections ESC leaves out (``esc.exclude_radius``); bounds the work per scan.
+MAX_TRACKED = 1000
+
+
+def confirmed_positions(tracks: np.ndarray) -> np.ndarray:
+    """World positions ``(K, 2)`` of the confirmed tracks among ``tracks`` (``x, y, existence,
+    confirmed`` records) with a finite position: the tracks ``esc.exclude_radius`` keeps ESC's input
+    clear of; at most :data:`MAX_TRACKED`, those of highest existence."""
+    ok = tracks[(tracks['confirmed'] != 0) & np.isfinite(tracks['x']) & np.isfinite(tracks['y'])]
+    if len(ok) > MAX_TRACKED:
+        ok = ok[np.argsort(-np.nan_to_num(ok['existence'], nan=-1.0), kind='stable')[:MAX_TRACKED]]
+    return np.stack([ok['x'], ok['y']], axis=-1).astype(float).reshape(-1, 2)
 
 
 def best_track_focus(tracks: np.ndarray) -> tuple[float, float] | None:

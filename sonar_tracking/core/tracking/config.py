@@ -89,6 +89,10 @@ class ExistenceConfig(Config):
                              high=1.0, low_open=True, high_open=True)
     terminate: float = setting(0.01, 'a track is terminated when its existence falls below this (not in the paper)',
                                low=0.0, high=1.0, high_open=True)
+    confirm_distance: float = setting(0.0, 'a track is confirmed only once its estimate has also moved this far '
+                                      'from where its existence first exceeded confirm: static echoes (frozen '
+                                      'speckle, a rock) are never confirmed; 0 = off (not in the paper)', unit='m',
+                                      low=0.0, high=1e6)
 
     def validate(self) -> None:
         if not self.terminate < self.initial:

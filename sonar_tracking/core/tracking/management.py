@@ -54,8 +54,10 @@ thousands of tentative tracks but only about 2,000 pairs, and is not touched. To
 budget and the caps bound the tracks, the pairs and so the memory and time of a scan for any
 input.
 
-Confirmation: a track is confirmed the first time its existence exceeds ``T_c`` and stays
-confirmed until it is terminated (the paper's FTD counts confirmed tracks per scan). Termination:
+Confirmation: a track is confirmed the first time its existence exceeds ``T_c`` (with
+``existence.confirm_distance`` d > 0, not in the paper: and its estimate has moved d from where its
+existence first exceeded ``T_c``, so a static echo detected every frame, frozen speckle of an imaging
+sonar or a rock, stays tentative) and stays confirmed until it is terminated (the paper's FTD counts confirmed tracks per scan). Termination:
 existence below the lower threshold.
 
 Duplicates (not in the paper). While the first track on a target is still tentative, the

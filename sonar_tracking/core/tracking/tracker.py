@@ -203,6 +203,8 @@ class ImmIpdaTracker:
         # Time a track's estimate left the coverage, NaN inside; None while no scan had a coverage
         # (every track inside as far as anyone knows: all NaN).
         self._outside_since: np.ndarray | None = None
+        # Where each track's existence first exceeded T_c, NaN before (existence.confirm_distance).
+        self._origin = np.zeros((2, 0))
         self._t: float | None = None
         self._output = np.zeros(0, TRACK_DTYPE)
 
@@ -417,14 +419,27 @@ class ImmIpdaTracker:
         self._xc, self._Pc = self._xc[:, keep], self._Pc[..., keep]
         if self._outside_since is not None:
             self._outside_since = self._outside_since[keep]
+        self._origin = self._origin[:, keep]
 
     def _manage(self, rep: StepReport, t: float, coverage: Coverage | None) -> None:
         cfg = self.config.existence
         xc, Pc = self._xc, self._Pc
         alive = np.empty(len(self._ids), dtype=bool)
+        before = self._confirmed.copy() if cfg.confirm_distance > 0 else None
         rep.dropped_numerical, rep.confirmed, rep.terminated = assess_tracks(
             xc, Pc, self._exist, self._confirmed, cfg.confirm, cfg.terminate,
             self.config.track.max_position_std ** 2, alive)
+        if before is not None and rep.confirmed:
+            # Confirmed only once moved from where its existence first passed T_c (a settled
+            # estimate, unlike the first detection): until then it waits, tentative.
+            newly = self._confirmed & ~before
+            fresh = newly & np.isnan(self._origin[0])
+            self._origin[:, fresh] = xc[:2, fresh]
+            with np.errstate(invalid='ignore'):
+                moved = np.hypot(xc[0] - self._origin[0], xc[1] - self._origin[1]) >= cfg.confirm_distance
+            wait = newly & ~moved
+            self._confirmed &= ~wait
+            rep.confirmed -= int(np.count_nonzero(wait))
         if coverage is not None:
             inside = coverage.contains(xc[:2])
             before = self._outside_since if self._outside_since is not None else _filled(len(inside), np.nan)
@@ -456,6 +471,7 @@ class ImmIpdaTracker:
         self._ids = np.concatenate((self._ids, self._new_ids(k)))
         if self._outside_since is not None:
             self._outside_since = np.concatenate((self._outside_since[keep], _filled(k, np.nan)))
+        self._origin = np.concatenate((self._origin[:, keep], _filled((2, k), np.nan)), axis=1)
         n, m, total = self.n, len(self.modes), kept + k
         x, P, mu = np.empty((n, m, total)), np.empty((n, n, m, total)), np.empty((m, total))
         exist, confirmed = np.empty(total), np.empty(total, dtype=bool)
