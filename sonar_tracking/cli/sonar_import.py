@@ -2,9 +2,14 @@
 
 Inputs: ROS 1 ``.bag`` and ROS 2 bags of scanning sonars (Tritech Micron/SeaKing scan lines,
 Ping360 echoes) or of ``marine_acoustic_msgs/ProjectedSonarImage`` (Oculus, Gemini, BlueView,
-DAVE), Ping Viewer ``.bin`` logs of the Ping360, and folders of polar frames with a ``sonar.yaml``.
-Output: ``/sonar/sector`` + ``/sonar/sector_info`` (+ ``/platform/odometry`` when the recording has
-odometry), MCAP by default. ``--inspect`` lists what is recognised and what would be written.
+DAVE), Ping Viewer ``.bin`` logs of the Ping360, and folders of frames (polar, or Cartesian fan
+pictures) with a ``sonar.yaml``. Output: ``/sonar/sector`` + ``/sonar/sector_info`` (+
+``/platform/odometry`` when the recording has odometry), MCAP by default. ``--inspect`` lists what
+is recognised, the conventions applied with the source of each, and what would be written.
+
+Conventions (head direction, head zero, angle unit, intensity coding) come from an option, else
+the ``--preset``, else the sensor the recording names (its message type or format: see
+:mod:`sonar_tracking.io.importers.conventions`), else the defaults.
 
 ``--picture RUN -o run.png`` draws a run recorded by ``sonar_stack --record`` (last FLS image,
 regions, tracks, detections, sonar path).
@@ -12,31 +17,28 @@ regions, tracks, detections, sonar path).
 Exit codes: 0 = everything imported; 1 = imported, but with problems (each printed with its topic
 and stamp: undecodable or malformed messages skipped, pings padded, missing pings, time gaps, a
 cut-off file, topics of unknown type, NaN values); 2 = nothing imported (bad arguments, unreadable
-recording, no sonar topic, no usable sector, output exists). The bag is built in a hidden folder
-beside the output and renamed to it only when the import succeeded: exit code 2 leaves no output.
+recording, a bad ``sonar.yaml``, angle table, stamps file or fan geometry, a folder of frames
+without ``sonar.yaml``, no sonar topic, no usable sector, output exists). The bag is built in a
+hidden folder beside the output and renamed to it only when the import succeeded: exit code 2
+leaves no output.
 """
 from __future__ import annotations
 
 import argparse
 import sys
 from pathlib import Path
+from typing import Any
 
 __all__ = ['main', 'load_preset']
 
 EXIT_OK, EXIT_PROBLEMS, EXIT_FAILED = 0, 1, 2
-PRESET_KEY = 'sonar_import'
 
 
 def load_preset(name: str) -> dict:
     """The importer settings of a sensor preset (``config/sensors/NAME.yaml``, section ``/**/sonar_import:
     ros__parameters:``, so the file is also a valid ROS parameter file for the nodes it configures)."""
-    from sonar_tracking.io import param_files
-    from sonar_tracking.resources import config_path
-    path = Path(name) if name.endswith('.yaml') else config_path(f'sensors/{name}.yaml')
-    section = param_files.parameters_for(param_files.load(path), PRESET_KEY)
-    if section is None:
-        raise ValueError(f'{path} has no /**/{PRESET_KEY}: ros__parameters: section')
-    return section
+    from sonar_tracking.io.importers.conventions import load_preset as load
+    return load(name)
 
 
 def _stamp(ns: int) -> str:
@@ -47,10 +49,10 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog='sonar_import', description=__doc__.split('\n\n')[0],
                                 epilog='Exit codes: 0 all imported, 1 imported with problems, 2 nothing imported.')
     p.add_argument('recording', type=Path, help='.bag, ROS 2 bag (directory/.mcap/.db3), Ping Viewer .bin, or a '
-                   'folder of frames with sonar.yaml')
+                   'folder of frames (polar or fan pictures) with sonar.yaml')
     p.add_argument('-o', '--output', type=Path, help='bag directory to create (never overwritten)')
-    p.add_argument('--inspect', action='store_true', help='list the recognised topics and what the import would '
-                   'write; write nothing')
+    p.add_argument('--inspect', action='store_true', help='list the recognised topics, the conventions applied and '
+                   'where each comes from, and what the import would write; write nothing')
     p.add_argument('--picture', action='store_true', help='draw the run recorded in RECORDING (sonar_stack --record: '
                    'last FLS image, regions, tracks, detections, sonar path) into the PNG given by -o')
     p.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
@@ -65,7 +67,8 @@ def _parser() -> argparse.ArgumentParser:
     head.add_argument('--clockwise', dest='head_clockwise', action='store_const', const=True,
                       help='head angles / beam azimuths grow clockwise seen from above')
     head.add_argument('--counter-clockwise', dest='head_clockwise', action='store_const', const=False,
-                      help='they grow counter-clockwise (REP-103; the default)')
+                      help='they grow counter-clockwise (REP-103; the default unless the message type names '
+                      'a sensor)')
     p.add_argument('--head-zero', type=float, dest='head_zero_deg', help='head angle [deg] that points forward')
     p.add_argument('--angle-unit', choices=('auto', 'rad', 'deg', 'grad'), help='unit of head angles in messages')
     p.add_argument('--beam-frame', choices=('auto', 'message', 'rep103'), help='ProjectedSonarImage beam frame')
@@ -92,19 +95,53 @@ _FLAT = {'topic': 'topic', 'odometry_topic': 'odometry_topic', 'pings': 'pings',
          'max_range': 'intensity.max_range'}
 
 
-def options_from_args(args: argparse.Namespace):
-    """ImportOptions from a preset (if any) overridden by the command line."""
-    from sonar_tracking.io.importers import ImportOptions
-    flat = load_preset(args.preset) if args.preset else {}
+def given_settings(args: argparse.Namespace) -> dict[str, tuple[Any, str]]:
+    """The settings given by a preset (if any) overridden by the command line: ``{flat name: (value,
+    source)}``, the source naming the option or the preset."""
+    given: dict[str, tuple[Any, str]] = {}
+    if args.preset:
+        given = {name: (value, f'preset {args.preset}') for name, value in load_preset(args.preset).items()}
     for attr, name in _FLAT.items():
         value = getattr(args, attr)
         if value is not None:
-            flat[name] = value
+            flag = {'head_clockwise': '--clockwise' if value else '--counter-clockwise',
+                    'head_zero_deg': '--head-zero'}.get(attr, '--' + attr.replace('_', '-'))
+            given[name] = (value, f'option {flag}')
     if args.intensity is not None:
-        flat['decode'] = args.intensity != 'keep'
+        given['decode'] = (args.intensity != 'keep', 'option --intensity')
         if args.intensity != 'keep':
-            flat['intensity.coding'] = 'linear_amplitude' if args.intensity == 'linear' else args.intensity
-    return ImportOptions.from_flat(flat)
+            coding = 'linear_amplitude' if args.intensity == 'linear' else args.intensity
+            given['intensity.coding'] = (coding, 'option --intensity')
+    return given
+
+
+def options_from_args(args: argparse.Namespace):
+    """ImportOptions from a preset (if any) overridden by the command line (no conventions of the
+    recording's sensor: those come with :func:`sonar_tracking.io.importers.conventions.resolve`)."""
+    from sonar_tracking.io.importers import ImportOptions
+    return ImportOptions.from_flat({name: value for name, (value, _) in given_settings(args).items()})
+
+
+def _conventions(recording, options, sources: dict[str, str]) -> list[tuple[str, str, str]]:
+    """(convention, value, source) rows of what the import applies."""
+    unit = recording.angle_unit_used(options)
+    rows = []
+    if unit:
+        rows.append(('head direction', 'clockwise (bearing = -(head - zero))' if options.head_clockwise else
+                     'counter-clockwise (bearing = head - zero)', sources['head_clockwise']))
+        rows.append(('head zero', f'{options.head_zero_deg:g} deg', sources['head_zero_deg']))
+        rows.append(('angle unit', unit + (' (auto: by the message type or format, and the angles)'
+                                           if options.angle_unit == 'auto' else ''), sources['angle_unit']))
+    else:
+        rows.append(('bearings', 'negated (recorded clockwise)' if options.head_clockwise else
+                     'as recorded (counter-clockwise, REP-103)', sources['head_clockwise']))
+    if options.decode:
+        rows.append(('intensity', f'decoded from {options.intensity.coding} to linear amplitude (32FC1)',
+                     sources['intensity.coding']))
+    else:
+        rows.append(('intensity', 'kept as recorded (the front end decodes it)',
+                     sources['decode']))
+    return rows
 
 
 def _report(stats, recording) -> None:
@@ -118,8 +155,10 @@ def main(argv: list[str] | None = None) -> int:
     from sonar_tracking.core.config import ConfigError
     from sonar_tracking.io.bags import BagWriteError
     from sonar_tracking.io.importers import RecordingError, SectorBagWriter, open_recording, run_import
+    from sonar_tracking.io.importers.conventions import DEFAULT_SOURCE, resolve
     try:
-        options = options_from_args(args)
+        given = given_settings(args)
+        options = options_from_args(args)   # every value checked before anything is read
     except (ConfigError, ValueError, FileNotFoundError, OSError) as exc:
         print(f'error: {exc}', file=sys.stderr)
         return EXIT_FAILED
@@ -144,6 +183,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         recording = open_recording(args.recording, args.date)
         topics = recording.topics()
+        sensor, named_by = recording.sensor(options)
+        try:
+            options, sources = resolve(given, sensor, named_by)
+        except (ConfigError, ValueError, FileNotFoundError) as exc:
+            raise RecordingError(f'the conventions of {sensor.name if sensor else "its sensor"} cannot be '
+                                 f'applied ({exc}); give --preset') from exc
+        for name, (_, source) in recording.own_conventions().items():
+            sources[name] = source
         if not args.inspect:
             recording.check(options)
     except RecordingError as exc:
@@ -161,6 +208,19 @@ def main(argv: list[str] | None = None) -> int:
                     'pose': 'pose -> /platform/odometry if named by --odometry-topic'}.get(t.role, t.note or 'not used')
             count = '?' if t.count < 0 else t.count
             print(f'  {t.name:30s} {t.msgtype:45s} {count!s:>7} msgs  {what}')
+        for line in recording.describe():
+            print(f'  {line}')
+        print('conventions (an option beats the preset, the preset the sensor the recording names, that the '
+              'default):')
+        rows = _conventions(recording, options, sources)
+        width = max(len(value) for _, value, _ in rows)
+        for name, value, source in rows:
+            print(f'  {name:15s} {value:{width}s}  from {source}')
+    if sources['head_clockwise'] == DEFAULT_SOURCE and recording.angle_unit_used(options):
+        print(f'note: {named_by or args.recording.name} names no sensor this importer knows (Tritech, Ping360): '
+              f'head angles are taken to grow counter-clockwise from {options.head_zero_deg:g} deg ahead (the '
+              'defaults); if the picture is mirrored or turned, give --preset or --clockwise / --head-zero '
+              '(--inspect lists the conventions)', file=sys.stderr)
     for t in topics:
         if t.note:
             recording.problem(t.name, 0, t.note)

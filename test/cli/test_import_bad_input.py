@@ -75,6 +75,72 @@ def test_bad_sonar_yaml_exits_2_naming_the_setting(tmp_path, capsys, meta, said)
     assert leftovers(tmp_path) == []
 
 
+FAN = {'image': 'fan', 'apex_px': [8, 39], 'metres_per_pixel': 0.25, 'fov_deg': 60.0, 'range_min': 1.0,
+       'range_max': 9.0, 'start_time': 1_700_000_000.0}
+TABLE = {k: v for k, v in GEOMETRY.items() if not k.startswith('angle')}
+
+
+@pytest.mark.parametrize('meta,files,said', [
+    ({**TABLE, 'beam_angles_deg': 'angles.csv'}, {'angles.csv': 'angle\n1\n2\nx\n'},
+     "line 4 of angles.csv ('x') does not end in an angle"),
+    ({**TABLE, 'beam_angles_deg': 'angles.csv'}, {'angles.csv': '\n'.join(map(str, [1, 2, 2, *range(3, 16)]))},
+     'the angles must grow (or fall) from beam to beam; beam 3 (2 deg) follows beam 2 (2 deg)'),
+    ({**TABLE, 'beam_angles_deg': list(range(10))}, {}, 'beam_angles_deg has 10 angles but f000.npy has 16 columns'),
+    ({**TABLE, 'beam_angles_deg': 'missing.csv'}, {}, 'missing.csv does not exist'),
+    ({**TABLE, 'beam_angles_deg': [0, 1, 'wide']}, {}, "beam_angles_deg[2] = 'wide' is not a number"),
+    ({**GEOMETRY, 'beam_angles_deg': list(range(16))}, {}, 'give one or the other'),
+    ({**GEOMETRY, 'stamps': 'names'}, {}, 'stamps: names, but f000.npy holds no date-time'),
+    ({**GEOMETRY, 'stamps': 'times.csv'}, {'times.csv': 'f000.npy,1700000000.0\nf002.npy,1700000000.2\n'},
+     'times.csv has no row for f001.npy'),
+    ({**GEOMETRY, 'stamps': 'times.csv'}, {'times.csv': 'file,time\nf000.npy,1700000000.0\nf001.npy,soon\n'},
+     "line 3 of times.csv ('f001.npy,soon') does not end in a time"),
+    ({**GEOMETRY, 'stamps': 'times.csv'}, {'times.csv': '1700000000.0\n'}, 'times.csv has 1 times for 3 frames'),
+    ({**FAN, 'apex_px': [8]}, {}, 'apex_px = [8] must be [column, row]'),
+    ({**FAN, 'forward': 'sideways'}, {}, "forward = 'sideways' must be one of"),
+    ({**FAN, 'metres_per_pixel': 0.0}, {}, 'metres_per_pixel = 0 must be more than 0'),
+    ({**FAN, 'metres_per_pixel': 1e-5}, {}, 'more than 16000000 cells'),
+    ({**FAN, 'fan_beams': 1}, {}, 'fan_beams = 1 must be a whole number of at least 2'),
+    ({**FAN, 'fov_deg': 60.0, 'angle_min_deg': -30.0}, {}, 'give fov_deg or angle_min_deg and angle_max_deg'),
+    ({**GEOMETRY, 'beam_angle_deg': [1, 2]}, {}, "unknown setting(s) ['beam_angle_deg']"),
+    ({**GEOMETRY, 'image': 'cartesian'}, {}, "image = 'cartesian' must be polar"),
+], ids=['table-not-a-number', 'table-not-monotone', 'table-count', 'table-missing', 'table-list-entry',
+        'table-and-limits', 'names-without-time', 'csv-missing-row', 'csv-bad-time', 'csv-count', 'fan-apex',
+        'fan-forward', 'fan-scale-zero', 'fan-too-many-cells', 'fan-beams-1', 'fan-fov-and-limits', 'typo',
+        'image-kind'])
+def test_bad_frame_settings_exit_2_naming_them(tmp_path, capsys, meta, files, said):
+    folder = frames(tmp_path / 'in', echo_frames(np.random.default_rng(4)), meta)
+    for name, text in files.items():
+        (folder / name).write_text(text)
+    code, err = run(capsys, folder, '-o', tmp_path / 'out')
+    assert code == 2 and said in err and err.startswith('error: '), err
+    assert leftovers(tmp_path) == []
+
+
+def test_a_folder_of_frames_without_sonar_yaml_says_so(tmp_path, capsys):
+    folder = frames(tmp_path / 'in', echo_frames(np.random.default_rng(4), 2))
+    (folder / 'sonar.yaml').unlink()
+    code, err = run(capsys, folder, '-o', tmp_path / 'out')
+    assert code == 2 and 'holds 2 frame files but no sonar.yaml describing their geometry' in err, err
+    assert 'no sonar topic' not in err
+    (tmp_path / 'empty').mkdir()
+    code, err = run(capsys, tmp_path / 'empty', '-o', tmp_path / 'out')
+    assert code == 2 and 'is neither a ROS 2 bag' in err and 'nor a folder of frames' in err, err
+    assert leftovers(tmp_path) == []
+
+
+def test_colour_frames_are_skipped_with_the_reason(tmp_path, capsys):
+    import cv2
+    folder = frames(tmp_path / 'in', [])
+    rng = np.random.default_rng(7)
+    grey = rng.integers(0, 255, (40, 16), dtype=np.uint8)
+    cv2.imwrite(str(folder / 'f000.png'), np.dstack([grey] * 3))                   # grey stored as colour: read
+    cv2.imwrite(str(folder / 'f001.png'), rng.integers(0, 255, (40, 16, 3), dtype=np.uint8))  # a colour map
+    code, err = run(capsys, folder, '-o', tmp_path / 'out')
+    assert code == 1 and 'f001.png' in err and 'a colour image (its channels differ)' in err, err
+    images = [m for m in read_bag(tmp_path / 'out', ['/sonar/sector'])]
+    assert len(images) == 1
+
+
 def test_an_all_nan_frame_is_a_problem_and_a_failed_import_leaves_nothing(tmp_path, capsys):
     rng = np.random.default_rng(5)
     nan = np.full((40, 16), np.nan, np.float32)

@@ -10,6 +10,7 @@ stamp and bearing (nothing lost, nothing duplicated).
 from __future__ import annotations
 
 import math
+import re
 import struct
 from pathlib import Path
 
@@ -126,16 +127,21 @@ class BagOut:
 
 
 def write_scanning(path: Path, kind: str, mode: str, clockwise: bool, ros1: bool, seed: int = 1,
-                   with_odometry: bool = True, storage: str = 'mcap', chunk_bytes: int = 0) -> list[tuple[int, float]]:
-    """A bag of per-ping messages; returns the (stamp_ns, REP-103 bearing) of every ping."""
+                   with_odometry: bool = True, storage: str = 'mcap', chunk_bytes: int = 0,
+                   package: str = '') -> list[tuple[int, float]]:
+    """A bag of per-ping messages; returns the (stamp_ns, REP-103 bearing) of every ping. ``package``
+    replaces the package name of the message types (micron_test, ping_test)."""
     rng = np.random.default_rng(seed)
     if kind == 'scanline':
-        ts, msgtype, zero, unit = typestore(ros1, SCANLINE_DEFS), 'micron_test/msg/ScanLine', 180.0, 180 / math.pi
+        pkg = package or 'micron_test'
+        defs = {k.replace('micron_test', pkg): v.replace('micron_test', pkg) for k, v in SCANLINE_DEFS.items()}
+        ts, msgtype, zero, unit = typestore(ros1, defs), f'{pkg}/msg/ScanLine', 180.0, 180 / math.pi
     elif kind == 'ping360':
-        ts, msgtype = typestore(ros1, {'ping_test/msg/SonarPing360': PING360_DEF}), 'ping_test/msg/SonarPing360'
-        zero, unit = 0.0, 200 / math.pi
+        msgtype = f'{package or "ping_test"}/msg/SonarPing360'
+        ts, zero, unit = typestore(ros1, {msgtype: PING360_DEF}), 0.0, 200 / math.pi
     else:  # echoes in radians (ROS 2 ping360_sonar) or gradians 0..399 (its ROS 1 driver)
-        ts, msgtype, zero = typestore(ros1, {'ping_test/msg/SonarEcho': ECHO_DEF}), 'ping_test/msg/SonarEcho', 0.0
+        msgtype = f'{package or "ping_test"}/msg/SonarEcho'
+        ts, zero = typestore(ros1, {msgtype: ECHO_DEF}), 0.0
         unit = 1.0 if kind == 'echo_rad' else 200 / math.pi
     out = BagOut(path, ros1, ts, storage, chunk_bytes)
     pings = []
@@ -152,7 +158,7 @@ def write_scanning(path: Path, kind: str, mode: str, clockwise: bool, ros1: bool
                       transmit_duration=10, sample_period=PING360_TICKS, transmit_frequency=750, range=0.0,
                       profile_data=s)
         elif kind == 'scanline':
-            bins = [new(ts, 'micron_test/msg/Bin', distance=0.0, intensity=int(v)) for v in s]
+            bins = [new(ts, msgtype.replace('ScanLine', 'Bin'), distance=0.0, intensity=int(v)) for v in s]
             msg = new(ts, msgtype, header=header(ts, ns, ros1), angle=head, bin_distance_step=BIN, bins=bins)
         else:
             msg = new(ts, msgtype, header=header(ts, ns, ros1), angle=head, number_of_samples=N_BINS,
@@ -348,6 +354,62 @@ def test_wrong_head_direction_mirrors_the_target(tmp_path):
     assert bearing < 0 and math.hypot(x - tx, y - ty) > 5 * cell
 
 
+# -- conventions from the message type ----------------------------------------------------------------
+
+@pytest.mark.parametrize('kind,package,ros1', [
+    ('scanline', 'micron_driver_ros', True),     # the type names the sensor
+    ('scanline', 'sonar_driver', False),         # the fields are a Tritech scan line's
+    ('echo_grad', 'ping360_sonar', True),        # ROS 1 ping360_sonar: gradians
+    ('ping360', 'bluerobotics_sonar_msgs', False),
+])
+def test_a_sensor_named_by_its_message_type_gets_its_conventions(tmp_path, capsys, kind, package, ros1):
+    """Without --preset or options a Tritech bag turns clockwise with 180 deg ahead, a Ping360 bag
+    clockwise with 0 grad ahead: the target comes out where it was, not mirrored."""
+    src = tmp_path / ('in.bag' if ros1 else 'in')
+    pings = write_scanning(src, kind, 'sector', True, ros1, seed=21, package=package)
+    assert run(src, '-o', tmp_path / 'out') == 0
+    assert 'note:' not in capsys.readouterr().err
+    sectors, poses = read_output(tmp_path / 'out')
+    assert_every_ping_once(sectors, pings)
+    check_target(sectors, poses, decode_db=60.0)
+
+
+def convention_rows(out: str) -> dict[str, str]:
+    """The rows of --inspect's conventions table by their first two words."""
+    lines = out.split('\nconventions ', 1)[1].splitlines()[1:]
+    return {line.split()[0] + ' ' + line.split()[1]: line for line in lines if line.startswith('  ')}
+
+
+def test_inspect_names_each_convention_and_its_source(tmp_path, capsys):
+    write_scanning(tmp_path / 'in.bag', 'scanline', 'sector', True, ros1=True, package='micron_driver_ros')
+    assert run(tmp_path / 'in.bag', '--inspect') == 0
+    rows = convention_rows(capsys.readouterr().out)
+    by_type = 'from message type micron_driver_ros/msg/ScanLine: Tritech Micron/SeaKing (preset micron_seaking)'
+    assert rows['head direction'].split()[2] == 'clockwise' and by_type in rows['head direction']
+    assert '180 deg' in rows['head zero'] and by_type in rows['head zero']
+    assert rows['angle unit'].split()[2] == 'deg' and by_type in rows['angle unit']
+    assert 'kept as recorded' in rows['intensity kept'] and by_type in rows['intensity kept']
+    # An option beats the preset, the preset beats the message type.
+    assert run(tmp_path / 'in.bag', '--inspect', '--preset', 'ping360', '--intensity', 'db', '--angle-unit',
+               'deg') == 0
+    rows = convention_rows(capsys.readouterr().out)
+    assert rows['head direction'].endswith('from preset ping360')
+    assert '0 deg' in rows['head zero'] and rows['head zero'].endswith('from preset ping360')
+    assert rows['angle unit'].endswith('from option --angle-unit')
+    assert 'decoded from db' in rows['intensity decoded'] and rows['intensity decoded'].endswith('option --intensity')
+
+
+def test_a_type_naming_no_sensor_keeps_the_defaults_and_says_so(tmp_path, capsys):
+    write_scanning(tmp_path / 'in', 'echo_rad', 'sector', False, ros1=False, package='acme_msgs')
+    assert run(tmp_path / 'in', '--inspect') == 0
+    captured = capsys.readouterr()
+    rows = list(convention_rows(captured.out).values())
+    assert [r.split()[-1] for r in rows] == ['default'] * 4
+    assert 'counter-clockwise' in rows[0] and '0 deg' in rows[1] and 'rad (auto' in rows[2]
+    assert 'note: message type acme_msgs/msg/SonarEcho names no sensor' in captured.err
+    assert '--clockwise' in captured.err
+
+
 # -- imaging sonars: ProjectedSonarImage ----------------------------------------------------------
 
 PROJECTED_DEFS = {
@@ -492,6 +554,109 @@ def test_cut_off_ping_viewer_log(tmp_path, capsys):
     assert 'the file is cut off' in capsys.readouterr().err
     sectors, _ = read_output(tmp_path / 'out')
     assert_every_ping_once(sectors, pings[:-1], t0=1714953600 * 10**9)
+
+
+ARABIC_INDIC = str.maketrans('0123456789.', '\u06f0\u06f1\u06f2\u06f3\u06f4\u06f5\u06f6\u06f7\u06f8\u06f9\u066b')
+
+
+def write_pingviewer_as_logged(path: Path, digits: str = 'arabic', seed: int = 31) -> list[tuple[int, float, int]]:
+    """A Ping Viewer log written the way the logger writes it: the sensor's byte stream (pings, and a
+    device_information message) cut into records at random byte boundaries, each record stamped with
+    the time its last byte arrived, written in Extended Arabic-Indic digits (``digits='none'``: a
+    time no reader can read; ``'some'``: that for some records). The range changes after 120 pings:
+    sample period and count differ and the pings turn to auto_device_data (2301). Returns
+    (arrival_ns, bearing, sample period) per ping."""
+    from brping import PingMessage
+    rng = np.random.default_rng(seed)
+    day = 1714953600 * 10**9  # 2024-05-06 00:00 UTC
+    info = PingMessage(4)
+    info.device_type, info.device_revision, info.firmware_version_major = 2, 1, 3
+    info.pack_msg_data()
+    stream, arrivals, pings = bytearray(info.msg_data), [(len(info.msg_data), 36_000_000)], []
+    for k, b in enumerate(head_bearings('continuous')):
+        grads = int(round(-b * 200 / math.pi)) % 400
+        b_exact = math.remainder(-grads * math.pi / 200, 2 * math.pi)
+        period, n = (2667, N_BINS) if k < 120 else (1600, 150)      # 10 m, then 4.8 m
+        m = PingMessage(2300 if k < 120 else 2301)
+        m.mode, m.gain_setting, m.angle, m.transmit_duration = 1, 0, grads, 20
+        m.sample_period, m.transmit_frequency, m.number_of_samples = period, 750, n
+        if k >= 120:
+            m.start_angle, m.stop_angle, m.num_steps, m.delay = 0, 399, 1, 0
+        m.data = bytearray(ping_samples(b_exact, rng, n).tobytes())
+        m.data_length = n
+        m.pack_msg_data()
+        stream += m.msg_data
+        tod_ms = 36_000_000 + 20 + k * 20
+        arrivals.append((len(stream), tod_ms))
+        pings.append((day + tod_ms * 10**6, b_exact, period))
+    cuts = np.cumsum(rng.integers(1, 1500, len(stream)))
+    cuts = [0] + [int(c) for c in cuts[cuts < len(stream)]] + [len(stream)]
+    blob = qstring('PingViewer sensor log file') + struct.pack('>i', 1)
+    for s in ('abc123', '2024-05-06', 'v2.1', 'Windows', '10'):
+        blob += qstring(s)
+    blob += struct.pack('>ii', 1, 2)
+    for a, z in zip(cuts[:-1], cuts[1:]):
+        tod_ms = next(t for end, t in arrivals if end >= z)     # when the record's last byte came
+        text = f'{tod_ms // 3600000:02d}:{tod_ms // 60000 % 60:02d}:{tod_ms // 1000 % 60:02d}.{tod_ms % 1000:03d}'
+        unreadable = digits == 'none' or (digits == 'some' and a % 7 == 3)
+        text = '--:--:--' if unreadable else text.translate(ARABIC_INDIC)
+        blob += qstring(text) + struct.pack('>I', z - a) + bytes(stream[a:z])
+    path.write_bytes(blob)
+    return pings
+
+
+def test_ping_viewer_log_as_the_logger_writes_it(tmp_path, capsys):
+    """Messages split across records at arbitrary bytes, times in Extended Arabic-Indic digits, a
+    range change part-way: every ping is imported once, and no sector mixes the two settings."""
+    src = tmp_path / 'ping360_20240506_100000.bin'
+    pings = write_pingviewer_as_logged(src)
+    assert run(src, '-o', tmp_path / 'out') == 0, capsys.readouterr().err
+    sectors, _ = read_output(tmp_path / 'out')
+    # Every ping once, in order; a column's time (stamp + j * ping period) is within a few pings of
+    # when the ping arrived (a ping takes the time of the record its first byte is in, ms resolution).
+    cols = columns(sectors, t0=0)
+    assert len(cols) == len(pings)
+    assert np.allclose([b for _, b in cols], [b for _, b, _ in pings], atol=1e-6)
+    assert np.max(np.abs(np.array([t for t, _ in cols]) - np.array([t / 1e9 for t, _, _ in pings]))) < 0.1
+    steps = {p: 1500 * p * 25e-9 / 2 for p in (2667, 1600)}
+    kinds = [min(steps, key=lambda p: abs(g.range_resolution - steps[p])) for _, g, _, _ in sectors]
+    for (_, g, _, _), p in zip(sectors, kinds):   # a sector's bins are those of one setting
+        assert g.n_bins == (N_BINS if p == 2667 else 150)
+        assert math.isclose(g.range_max, (g.n_bins - 0.5) * steps[p], rel_tol=1e-6)
+    assert sum(g.n_beams for (_, g, _, _), p in zip(sectors, kinds) if p == 2667) == 120
+    assert sum(g.n_beams for (_, g, _, _), p in zip(sectors, kinds) if p == 1600) == len(pings) - 120
+    # Ping360 conventions from the format: the target is to port, as recorded.
+    first = [x for x, p in zip(sectors, kinds) if p == 2667]
+    (rx, ry, bearing), cell = fls_target(first, [], decode_db=60.0)
+    tx, ty = TARGET_RANGE * math.cos(TARGET_BEARING), TARGET_RANGE * math.sin(TARGET_BEARING)
+    assert math.hypot(rx - tx, ry - ty) <= cell and bearing > 0
+
+
+def test_ping_viewer_records_with_unreadable_times_take_the_previous_time(tmp_path, capsys):
+    src = tmp_path / 'ping360_20240506_100000.bin'
+    pings = write_pingviewer_as_logged(src, digits='some')
+    assert run(src, '-o', tmp_path / 'out') == 1
+    err = capsys.readouterr().err
+    assert re.search(r'warning: ping360 @ -: \d+ of \d+ record times cannot be read', err), err
+    cols = columns(read_output(tmp_path / 'out')[0], t0=0)
+    assert len(cols) == len(pings)
+    assert np.allclose([b for _, b in cols], [b for _, b, _ in pings], atol=1e-6)
+    assert np.max(np.abs(np.array([t for t, _ in cols]) - np.array([t / 1e9 for t, _, _ in pings]))) < 0.1
+
+
+def test_ping_viewer_log_without_readable_times_is_stamped_by_sample_timing(tmp_path, capsys):
+    src = tmp_path / 'ping360_20240506_100000.bin'
+    pings = write_pingviewer_as_logged(src, digits='none')
+    assert run(src, '-o', tmp_path / 'out') == 1
+    err = capsys.readouterr().err
+    assert 'no record time can be read: pings are stamped in order' in err
+    sectors, _ = read_output(tmp_path / 'out')
+    cols = columns(sectors, t0=1714953600 * 10**9)
+    assert len(cols) == len(pings)
+    # In ping order at the ping's listening time plus its 20 us transmission.
+    listen = [20e-6 + (N_BINS * 2667 if p == 2667 else 150 * 1600) * 25e-9 for _, _, p in pings]
+    assert np.allclose([t for t, _ in cols], np.concatenate([[0.0], np.cumsum(listen)[:-1]]), atol=1e-6)
+    assert np.allclose([b for _, b in cols], [b for _, b, _ in pings], atol=1e-6)
 
 
 # -- folders of polar frames ------------------------------------------------------------------------

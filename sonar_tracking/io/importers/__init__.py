@@ -1,4 +1,4 @@
-"""``sonar_import``: recordings of real sonars (ROS 1/2 bags, Ping Viewer logs, polar frames) into
+"""``sonar_import``: recordings of real sonars (ROS 1/2 bags, Ping Viewer logs, frame folders) into
 the package's sector contract (DESIGN §4). See ``docs/importers.md`` for the conventions per format."""
 from sonar_tracking.io.importers.options import ImportOptions, ProjectedOptions
 from sonar_tracking.io.importers.readers import open_recording

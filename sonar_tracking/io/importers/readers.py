@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from sonar_tracking.io.importers.frame_folder import FolderRecording
+from sonar_tracking.io.importers.frame_folder import FRAME_SUFFIXES, FolderRecording, missing_yaml_text
 from sonar_tracking.io.importers.ping_viewer import PingViewerRecording
 from sonar_tracking.io.importers.recording import Recording, RecordingError
 from sonar_tracking.io.importers.ros_bag import BagRecording
@@ -13,7 +13,8 @@ __all__ = ['open_recording']
 
 def open_recording(path: str | Path, date: str = '') -> Recording:
     """The reader for ``path`` by its form: ``.bag`` (ROS 1), ``.bin`` (Ping Viewer), a folder with
-    ``sonar.yaml`` (polar frames), else a ROS 2 bag (directory, ``.mcap``, ``.db3``)."""
+    ``sonar.yaml`` (frames), else a ROS 2 bag (directory, ``.mcap``, ``.db3``); a folder that is
+    neither says which it lacks."""
     path = Path(path)
     if not path.exists():
         raise RecordingError(f'{path} does not exist')
@@ -30,4 +31,9 @@ def open_recording(path: str | Path, date: str = '') -> Recording:
             path = files[0]
         elif files:
             raise RecordingError(f'{path} has no metadata.yaml and {len(files)} MCAP files; import them one by one')
+        elif not any(path.glob('*.db3')):
+            if any(p.suffix.lower() in FRAME_SUFFIXES for p in path.iterdir()):
+                raise RecordingError(missing_yaml_text(path))
+            raise RecordingError(f'{path} is neither a ROS 2 bag (no metadata.yaml, .mcap or .db3 file) nor a folder '
+                                 f'of frames (no sonar.yaml and no {"/".join(FRAME_SUFFIXES)} files)')
     return BagRecording(path, ros1=False)

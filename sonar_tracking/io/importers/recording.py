@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from sonar_tracking.core.sector import SectorGeometry
+from sonar_tracking.io.importers.conventions import Sensor
 from sonar_tracking.io.importers.options import ImportOptions, angle_to_rad
 
 __all__ = ['Item', 'Frame', 'Recording', 'RecordingError', 'TopicInfo', 'even_grid', 'bins_geometry', 'head_bearing']
@@ -114,6 +115,23 @@ class Recording:
 
     def check(self, options: ImportOptions) -> None:
         """RecordingError now if ``items(options)`` could not import anything (before an output exists)."""
+
+    def sensor(self, options: ImportOptions) -> tuple[Sensor | None, str]:
+        """The sensor the recording names and how it names it (``message type X``), or ``(None, '')``."""
+        return None, ''
+
+    def angle_unit_used(self, options: ImportOptions) -> str:
+        """The unit its head angles are read in (``options.angle_unit`` with ``auto`` decided), or ''
+        when it has no head angles (imaging sonars and frames give bearings)."""
+        return ''
+
+    def describe(self) -> list[str]:
+        """Lines ``--inspect`` adds about the recording (geometry, stamps, what was skipped)."""
+        return []
+
+    def own_conventions(self) -> dict[str, tuple[Any, str]]:
+        """Conventions the recording states itself (they beat options): ``{setting: (value, source)}``."""
+        return {}
 
     def items(self, options: ImportOptions) -> Iterator[Item]:
         raise NotImplementedError

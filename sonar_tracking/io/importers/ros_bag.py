@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from sonar_tracking.core.sector import GeometryError, SectorGeometry
+from sonar_tracking.io.importers.conventions import TRITECH, Sensor, sensor_named_by
 from sonar_tracking.io.importers.msgdefs import BUILTIN_DEFINITIONS, register_definitions
 from sonar_tracking.io.importers.options import ImportOptions, ProjectedOptions
 from sonar_tracking.io.importers.recording import (
@@ -230,6 +231,27 @@ class BagRecording(Recording):
             return ''
         return odo[0] if odo else ''
 
+    def sensor(self, options: ImportOptions) -> tuple[Sensor | None, str]:
+        """The sensor the sonar topic's message type names; a scan line (``angle``, ``bins[]``) is a
+        Tritech's whatever its package is called (no other scanning sonar's driver sends bins)."""
+        try:
+            topic = self.sonar_topic(options)
+        except RecordingError:
+            return None, ''
+        if topic.role == 'projected':
+            return None, ''
+        found = sensor_named_by(topic.msgtype)
+        if found is None and topic.role == 'scanline':
+            return TRITECH, f'message type {topic.msgtype} (the fields of a Tritech scan line)'
+        return found, f'message type {topic.msgtype}'
+
+    def angle_unit_used(self, options: ImportOptions) -> str:
+        try:
+            topic = self.sonar_topic(options)
+        except RecordingError:
+            return ''
+        return '' if topic.role == 'projected' else self.angle_unit(topic, options)
+
     def angle_unit(self, topic: TopicInfo, options: ImportOptions) -> str:
         """The head-angle unit: the option, or guessed from the type and the first 500 angles."""
         if options.angle_unit != 'auto':
@@ -311,7 +333,8 @@ class BagRecording(Recording):
                 raise ValueError('ping has neither a sample period nor a range')
             step = rng / n
         r0, r1 = bins_geometry(n, step)
-        return Ping(stamp, log_ns, head_bearing(float(msg.angle), unit, options), samples, r0, r1, expected)
+        return Ping(stamp, log_ns, head_bearing(float(msg.angle), unit, options), samples, r0, r1, expected,
+                    settings=(period, expected))
 
     def _projected(self, msg: Any, stamp: int, log_ns: int, unit: str, options: ImportOptions,
                    last_frame: list) -> Frame:

@@ -5,7 +5,8 @@ A mechanically scanned head (Tritech Micron/SeaKing, Ping360) sends one ping per
 beams in increasing bearing (counter-clockwise from x, REP-103):
 
 * a sweep ends where the head reverses (back-and-forth sector scans), where it has covered a full
-  turn (continuous rotation), where the step, the range bins or the sample count change, where
+  turn (continuous rotation), where the step, the range bins, the sample count or the settings
+  (:attr:`Ping.settings`) change, where
   pings are missing (the bearing jumps by more than one step) and where the time between two pings
   exceeds ``max_gap``; the pings of a sweep are held until it ends (at most one turn), and the
   last, partial sweep is returned by :meth:`SweepAssembler.finish`;
@@ -39,7 +40,9 @@ class Ping:
     """One ping: stamp and bag time [ns], bearing [rad, REP-103], samples (range bins, nearest first).
 
     ``range_min``/``range_max`` are the centres of the first and last sample [m]; ``expected`` the
-    sample count the message announced (0 = not announced).
+    sample count the message announced (0 = not announced); ``settings`` the sensor settings that
+    shape the samples (a Ping360's sample period and count): pings whose settings differ never
+    share a sector.
     """
 
     stamp_ns: int
@@ -49,6 +52,7 @@ class Ping:
     range_min: float
     range_max: float
     expected: int = 0
+    settings: tuple = ()
 
 
 @dataclass(eq=False)
@@ -151,7 +155,7 @@ class SweepAssembler:
 
     def _continues(self, sweep: _Sweep, ping: Ping) -> bool:
         last = sweep.pings[-1]
-        if len(ping.samples) != len(last.samples) or not (
+        if ping.settings != last.settings or len(ping.samples) != len(last.samples) or not (
                 math.isclose(ping.range_min, last.range_min, rel_tol=1e-4, abs_tol=1e-6)
                 and math.isclose(ping.range_max, last.range_max, rel_tol=1e-4, abs_tol=1e-6)):
             return False
