@@ -19,6 +19,9 @@ Subcommands:
   jipda            IMM-JIPDA against IMM-IPDA on two crossing or parallel targets, in and out of the
                    trackers' model (SCMDE clutter, wrong P_D, manoeuvres, unresolved targets), each at its
                    T_c chosen on calibration seeds, corrected paired intervals: the docs/results table
+  imaging          imaging sonars on the simulated Oculus-class head: P_D against false detections per CFAR
+                   variant, ESC under a change of clutter shape, the static empty scene, the diver (CTTR,
+                   false tracks per hour), the crossing school (JIPDA against IPDA), out of sample
   soak             start-work-stop cycles of every node under CPU load: crashes, hangs, exit codes
 
 The Monte Carlo subcommands run over --jobs processes or a Dask cluster (--cluster).
@@ -37,6 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
         bench,
         esc_eval,
         fls_eval,
+        imaging_eval,
         jipda_eval,
         select_features,
         soak,
@@ -87,6 +91,10 @@ def build_parser() -> argparse.ArgumentParser:
                        'the trackers\' model, paired on two evaluation seed sets (the docs/results table)')
     jipda_eval.add_arguments(p)
     p.set_defaults(handler=jipda_eval.main_args)
+    p = sub.add_parser('imaging', help='imaging sonars: CFAR variants, ESC under a change of clutter shape, the '
+                       'static scene, the diver and the crossing school, out of sample (the docs/results table)')
+    imaging_eval.add_arguments(p)
+    p.set_defaults(handler=imaging_eval.main_args)
     p = sub.add_parser('soak', help='start, work and stop every node many times under CPU load: crashes, hangs '
                        'and exit statuses at SIGINT')
     soak.add_arguments(p)

@@ -116,6 +116,10 @@ class ThresholdConfig(Config):
                              high=1e6)
 
     def validate(self) -> None:
+        if self.method != 'fixed':      # CFAR starts from the scale of cfar.pfa (checked by DetectorConfig)
+            if not self.minimum <= self.maximum:
+                raise ConfigError(f'needs threshold.minimum <= threshold.maximum, not {self.minimum} <= {self.maximum}')
+            return
         if not self.minimum <= self.initial <= self.maximum:
             raise ConfigError('needs threshold.minimum <= threshold.initial <= threshold.maximum, not '
                               f'{self.minimum} <= {self.initial} <= {self.maximum}')

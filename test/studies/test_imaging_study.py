@@ -1,0 +1,71 @@
+"""The imaging-sonar study: the preset read as the nodes read it, reduced frames, the Poisson bound,
+and a seeded reduced run of every part of ``sonar_eval imaging``."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from sonar_tracking.core.detection.cfar import Cfar
+from sonar_tracking.studies import imaging_table
+from sonar_tracking.studies.evidence import SeedSplit
+from sonar_tracking.studies.imaging_study import ImagingRun, front_end, poisson_upper, run_once
+
+
+def test_the_front_end_is_the_preset_file_and_reduced_frames_divide_the_cell_counts():
+    full, trk = front_end('oculus_m750d')
+    half, _ = front_end('oculus_m750d', 2)
+    assert full.threshold.method == 'ca' and full.intensity.coding == 'db'
+    assert trk.existence.confirm_distance == 1.0 and full.cells.target_size == 1.8
+    assert (full.cfar.stride_beams, full.cfar.reach_beams) == (4, 24)
+    assert (half.cfar.stride_beams, half.cfar.reach_beams, half.cells.merge_bins) == (2, 12, 5)
+    # The training reach still passes the guard by a stride, so CFAR has training cells.
+    for cfg in (full, half, front_end('aris3000', 4)[0]):
+        c = cfg.cfar
+        assert c.reach_bins >= c.guard_bins + c.stride_bins and c.reach_beams >= c.guard_beams + c.stride_beams
+        assert Cfar(cfg.threshold.method, c).training_cells > 0
+
+
+def test_poisson_upper_bound():
+    assert poisson_upper(0, 3.0) == pytest.approx(2.9957 / 3.0, rel=1e-4)   # -ln(0.05) events in 3 h
+    assert poisson_upper(2, 10.0) == pytest.approx(6.2958 / 10.0, rel=1e-4)
+    assert poisson_upper(0, 0.0) == math.inf
+
+
+def test_a_run_is_reproducible_and_the_trackers_share_its_detections():
+    run = ImagingRun('imaging_school', scale=4, frames=30, methods=('ipda', 'jipda'), confirm=(('jipda', 0.95),))
+    a = run_once(run, np.random.SeedSequence(7))
+    b = run_once(run, np.random.SeedSequence(7))
+    assert a['ipda'] == b['ipda'] and a['detector'] == b['detector']
+    assert a['ipda']['confirm'] == 0.99 and a['jipda']['confirm'] == 0.95
+
+
+@pytest.mark.slow
+def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
+    """ESC brings the density back after the clutter turns K while CA alone stays far above it; the
+    static scene confirms nothing; a lower design P_fa gives fewer false detections."""
+    monkeypatch.setattr(imaging_table, 'ESC_SWITCH', 100)
+    monkeypatch.setattr(imaging_table, 'ESC_SCORED', (500, 600))
+    monkeypatch.setattr(imaging_table, 'PFA_GRID', (1e-3, 1e-6))
+    monkeypatch.setattr(imaging_table, 'CFAR_METHODS', ('ca',))
+    monkeypatch.setattr(imaging_table, 'RHO_GRID', (5e-4,))
+    monkeypatch.setattr(imaging_table, 'T_GRID', (0.99,))
+    sizes = imaging_table.Sizes(runs=2, calibration_runs=1, roc_runs=3, esc_runs=3, static_frames=300,
+                                diver_frames=200, school_frames=100, scale=4, static_scale=4, esc_frames=600)
+    result = imaging_table.run_table(SeedSplit((11,), (21, 22)), sizes)
+    json.dumps(result, default=lambda o: o.tolist())
+    esc = result['esc']['sets']
+    for s in ('21', '22'):
+        on, off = esc[s]['esc_on']['after']['mean'], esc[s]['esc_off']['after']['mean']
+        assert off > 4.0, 'CA-CFAR alone under K clutter exceeds its design density several times'
+        assert on < 0.5 * off
+    assert all(v['confirmed_tracks'] == 0 for v in result['static']['sets'].values())
+    rows = {row['pfa']: row for row in result['roc']['rows']}
+    assert rows[1e-3]['false_per_frame']['mean'] > 10 * rows[1e-6]['false_per_frame']['mean']
+    assert result['diver']['read_back']['equal']
+    text = imaging_table.format_table(json.loads(json.dumps(result, default=lambda o: o.tolist())))
+    for heading in ('**Detection**', '**ESC under a change of clutter shape**', '**Static empty scene',
+                    '**Diver**', '**Crossing school**'):
+        assert heading in text
