@@ -32,6 +32,12 @@ around it. This module is the one place that says how that level is estimated:
 Two layouts use these rules: :func:`range_profile` (one level per range bin: the median of the
 bin's measured beams, smoothed along range; the FLS filter's normalisation) and
 :func:`window_sums` / :func:`window_order` (a level per cell from its own window; CFAR).
+
+The window sums are float32 sums of a few hundred cells, so their last bits depend on the order of
+the additions. :meth:`Window.correlate` takes OpenCV's separable filter; :func:`window_sums` of the
+whole window (cell-averaging CFAR, an imaging frame at frame rate) takes a compiled kernel that adds
+in the same order (:func:`_ca_sums`), bit for bit, in one pass over the frame without the
+intermediate images.
 """
 from __future__ import annotations
 
@@ -41,7 +47,10 @@ from functools import cached_property
 
 import cv2
 import numpy as np
+from numba import uintp
 from scipy.ndimage import median_filter, rank_filter
+
+from sonar_tracking.core.jit import kernel
 
 __all__ = ['measured', 'exponential_order_mean', 'range_profile', 'Window', 'WindowSums', 'window_sums',
            'window_order', 'LN2']
@@ -192,6 +201,15 @@ class Window:
             cache[key] = np.rint(self.correlate(np.ones(shape, np.float32), nearer_only))
         return cache[key]
 
+    @cached_property
+    def sum_plan(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The whole window's sums as :func:`_ca_sums` takes them: the row terms of the training rows
+        and of the guard (offsets and pair flags, :func:`_row_terms`), then the column terms of both
+        (:func:`_column_terms`)."""
+        (rows, cols, _), (guard_rows, guard_cols, _) = self._separable(False)
+        return (*_row_terms(_trimmed(cols)), *_row_terms(_trimmed(guard_cols)), _column_terms(_trimmed(rows)),
+                _column_terms(_trimmed(guard_rows)))
+
 
 def _trimmed(kernel: np.ndarray) -> np.ndarray:
     """A centred kernel without the zero taps at both ends beyond its farthest non-zero tap (the
@@ -199,6 +217,132 @@ def _trimmed(kernel: np.ndarray) -> np.ndarray:
     r = len(kernel) // 2
     reach = int(np.max(np.abs(np.flatnonzero(kernel) - r)))
     return np.ascontiguousarray(kernel[r - reach:r + reach + 1])
+
+
+def _row_terms(taps: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The additions of OpenCV's row pass for a symmetric 0/1 kernel ``taps``, in its order: offsets of the
+    taps, and whether each term is the pair ``v[x - o] + v[x + o]`` rather than ``v[x + o]`` alone.
+
+    A kernel of up to 5 taps is the centre tap followed by the symmetric pairs outward; a longer one
+    its taps from left to right (what ``cv2.sepFilter2D`` does with float32 images; zero taps add
+    exactly 0 and are left out)."""
+    r = len(taps) // 2
+    if len(taps) <= 5:
+        offsets = [0] + [o for o in range(1, r + 1) if taps[r + o]]
+        return np.array(offsets, np.int64), np.array([o > 0 for o in offsets], np.bool_)
+    offsets = [i - r for i in range(len(taps)) if taps[i]]
+    return np.array(offsets, np.int64), np.zeros(len(offsets), np.bool_)
+
+
+def _column_terms(taps: np.ndarray) -> np.ndarray:
+    """The offsets of OpenCV's column pass for a symmetric 0/1 kernel ``taps`` with its centre tap set:
+    the centre, then ``h[y - o] + h[y + o]`` for each set tap ``o > 0`` outward."""
+    r = len(taps) // 2
+    return np.array([0] + [o for o in range(1, r + 1) if taps[r + o]], np.int64)
+
+
+@kernel
+def _row_sums(values, marks, offsets, pairs, pad, out_values, out_marks):
+    """One row pass of the training or guard kernel over the zero-padded rows ``values`` and
+    ``marks`` (``pad`` cells each side), in the order of :func:`_row_terms`."""
+    n = uintp(out_values.shape[0])
+    for x in range(n):
+        out_values[x] = 0.0
+        out_marks[x] = 0.0
+    for g in range(offsets.shape[0]):
+        o = offsets[g]
+        b = uintp(pad + o)       # unsigned indices: no wrap-around test, so the loops vectorise
+        if pairs[g]:
+            a = uintp(pad - o)
+            for x in range(n):
+                out_values[x] += values[a + x] + values[b + x]
+                out_marks[x] += marks[a + x] + marks[b + x]
+        else:
+            for x in range(n):
+                out_values[x] += values[b + x]
+                out_marks[x] += marks[b + x]
+
+
+@kernel
+def _column_sums(ring_values, ring_marks, offsets, y, out_values, out_marks):
+    """One column pass at row ``y`` over row-pass results kept in a ring of ``2 reach + 1`` rows (row
+    ``y`` in slot ``y % ring``), in the order of :func:`_column_terms`."""
+    n = uintp(out_values.shape[0])
+    ring = ring_values.shape[0]
+    centre_v = ring_values[y % ring]
+    centre_m = ring_marks[y % ring]
+    for x in range(n):
+        out_values[x] = centre_v[x]
+        out_marks[x] = centre_m[x]
+    for g in range(1, offsets.shape[0]):
+        o = offsets[g]
+        av, bv = ring_values[(y - o) % ring], ring_values[(y + o) % ring]
+        am, bm = ring_marks[(y - o) % ring], ring_marks[(y + o) % ring]
+        for x in range(n):
+            out_values[x] += av[x] + bv[x]
+            out_marks[x] += am[x] + bm[x]
+
+
+@kernel
+def _ca_sums(power, floor, row_outer, pair_outer, row_guard, pair_guard, col_outer, col_guard, total, count):
+    """Sums of the measured cells' excess over ``floor`` (rule 1) and their counts over each cell's
+    training cells: the training rectangle's sums less the guard's, by separable passes in
+    OpenCV's order (:func:`_row_terms`, :func:`_column_terms`); ``total`` is clipped at 0. Row passes
+    go into a ring of rows that the column pass reads as soon as it holds a row's neighbours."""
+    n_rows, n_cols = power.shape
+    pad_x = 0
+    for o in row_outer:
+        pad_x = max(pad_x, abs(o))
+    for o in row_guard:
+        pad_x = max(pad_x, abs(o))
+    pad_y = max(col_outer.max(), col_guard.max())
+    ring = 2 * pad_y + 1
+    cut = np.float32(floor)
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    values = np.zeros(n_cols + 2 * pad_x, np.float32)
+    marks = np.zeros(n_cols + 2 * pad_x, np.float32)
+    outer_v = np.zeros((ring, n_cols), np.float32)
+    outer_m = np.zeros((ring, n_cols), np.float32)
+    guard_v = np.zeros((ring, n_cols), np.float32)
+    guard_m = np.zeros((ring, n_cols), np.float32)
+    sum_v = np.empty(n_cols, np.float32)
+    sum_m = np.empty(n_cols, np.float32)
+    less_v = np.empty(n_cols, np.float32)
+    less_m = np.empty(n_cols, np.float32)
+    width = uintp(n_cols)
+    for ahead in range(n_rows + pad_y):     # row pass of row `ahead`, column pass of row `ahead - pad_y`
+        slot = (ahead + pad_y) % ring
+        if ahead < n_rows:
+            row = power[ahead]
+            for x in range(width):
+                p = row[x]
+                ok = np.isfinite(p) and p != zero
+                v = p
+                if floor > 0:
+                    v = p - cut
+                    if not v > zero:
+                        v = zero
+                values[pad_x + x] = v if ok else zero
+                marks[pad_x + x] = one if ok else zero
+            _row_sums(values, marks, row_outer, pair_outer, pad_x, outer_v[slot], outer_m[slot])
+            _row_sums(values, marks, row_guard, pair_guard, pad_x, guard_v[slot], guard_m[slot])
+        else:                               # below the frame: rows of zeros
+            outer_v[slot] = 0.0
+            outer_m[slot] = 0.0
+            guard_v[slot] = 0.0
+            guard_m[slot] = 0.0
+        y = ahead - pad_y
+        if y < 0:
+            continue
+        _column_sums(outer_v, outer_m, col_outer, y + pad_y, sum_v, sum_m)
+        _column_sums(guard_v, guard_m, col_guard, y + pad_y, less_v, less_m)
+        out_t = total[y]
+        out_c = count[y]
+        for x in range(width):
+            t = sum_v[x] - less_v[x]
+            out_t[x] = t if t > zero else zero
+            out_c[x] = sum_m[x] - less_m[x]
 
 
 @dataclass(frozen=True, eq=False)
@@ -232,6 +376,11 @@ def window_sums(power: np.ndarray, window: Window, halves: bool = False, floor: 
     ``halves``: also the nearer half's (for greatest-of; otherwise those are empty). Counts are
     exact integers (float32); unmeasured cells add 0 to the sums."""
     p = np.asarray(power, dtype=np.float32)
+    if not halves and p.ndim == 2 and p.size:
+        total = np.empty(p.shape, np.float32)
+        count = np.empty(p.shape, np.float32)
+        _ca_sums(np.ascontiguousarray(p), float(floor), *window.sum_plan, total, count)
+        return WindowSums(total, count, _NONE, _NONE)
     ok = measured(p)
     values = _excess(p, ok, floor)
     if ok.all():   # the counts depend on the frame size only

@@ -71,6 +71,14 @@ structure is one connected echo with it and is dropped with it (a clutter map ma
 it); the measured behaviour and the choices are in ``docs/algorithms/structure_rejection.md``.
 
 Everything is off by default (``enabled``), so both pipelines reproduce the papers unless asked.
+
+Cost per look. An imaging sonar looks at every cell of its fan every frame (512 x 1000 cells at
+20 Hz), so the looks avoid temporaries over the whole fan: the sensor map keeps one weight ``W`` per
+beam column (every cell of a column is looked at together, so they share it) and updates ``S`` in
+place; the world map places the sector's cells in its grid and applies the rule to the cells seen in
+compiled loops, with ``exp`` taken by numpy once per distinct previous look time; its storage wraps
+around, so a window that follows the sonar by a cell clears a row or column of it and copies
+nothing. The arithmetic is the rule's, operation for operation, in float32 like the maps.
 """
 from __future__ import annotations
 
@@ -80,13 +88,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.jit import kernel
 from sonar_tracking.core.sector import SectorGeometry
 
 __all__ = ['WarmUp', 'StructureConfig', 'echo_shapes', 'is_structure_shape', 'PolarBackground', 'GridBackground',
            'SectorBackground', 'vetoed_groups']
 
 _FORGET = 3.0          # a cell unseen for this many time constants starts afresh (5 % weight left)
-_CHUNK = 1 << 18       # sector cells placed in the world map per pass (bounds temporary memory)
+_LAST_LOOKS = 8192     # distinct previous look times a compiled world-map look handles (more: the array code)
 
 
 @dataclass(frozen=True)
@@ -261,14 +270,16 @@ class PolarBackground:
         self._ref = g.angle_min
         self._col = np.full(self._ring, -1, np.int64)    # ring slot -> column of the arrays below
         self._s = np.zeros((self._rows, 0), np.float32)
-        self._w = np.zeros((self._rows, 0), np.float32)
+        self._w = np.zeros(0, np.float32)                # per column: its cells are looked at together
         self._t_last = np.zeros(0)
         self._t_first = np.zeros(0)
         self.columns = 0
 
     def _matches(self, g: SectorGeometry) -> bool:
         key = (g.angle_increment, g.n_bins, g.range_min, g.range_max)
-        return self._key is not None and np.allclose(key, self._key, rtol=1e-9, atol=1e-12)
+        # numpy's isclose test (rtol 1e-9, atol 1e-12) on four numbers, without its per-call cost
+        return self._key is not None and all(a == b or abs(a - b) <= 1e-12 + 1e-9 * abs(b)
+                                             for a, b in zip(key, self._key))
 
     def _slots(self, g: SectorGeometry) -> np.ndarray:
         return np.rint((g.bearings() - self._ref) / g.angle_increment).astype(np.int64) % self._ring
@@ -283,7 +294,7 @@ class PolarBackground:
         if self.columns + new.size > cap:  # grow geometrically (amortised O(1) a column), within budget
             more = min(max(self.columns + new.size, 2 * cap), budget) - cap
             self._s = np.concatenate([self._s, np.zeros((self._rows, more), np.float32)], axis=1)
-            self._w = np.concatenate([self._w, np.zeros((self._rows, more), np.float32)], axis=1)
+            self._w = np.concatenate([self._w, np.zeros(more, np.float32)])
             self._t_last = np.concatenate([self._t_last, np.zeros(more)])
             self._t_first = np.concatenate([self._t_first, np.full(more, np.nan)])
         self._col[new] = self.columns + np.arange(new.size)
@@ -305,8 +316,15 @@ class PolarBackground:
             echo = np.asarray(np.pad(echo, ((0, pad), (0, 0))).reshape(self._rows, k, -1).any(axis=1))
         c = cols[ok]
         decay = _decay(self._t_last, self._t_first, c, t, self.config.time_constant)
-        self._s[:, c] = self._s[:, c] * decay + echo[:, ok]
-        self._w[:, c] = self._w[:, c] * decay + 1.0
+        first = int(c[0])
+        if c.size == echo.shape[1] and np.all(np.diff(c) == 1):
+            # A frame whose beams are consecutive columns (an imaging sonar): in place, no copies.
+            s = self._s[:, first:first + c.size]
+            np.multiply(s, decay, out=s)
+            np.add(s, echo, out=s)
+        else:
+            self._s[:, c] = self._s[:, c] * decay + echo[:, ok]
+        self._w[c] = self._w[c] * decay + 1.0
 
     def persistent(self, rows: np.ndarray, beams: np.ndarray, geometry: SectorGeometry, t: float) -> np.ndarray:
         """Whether cells ``(rows, beams)`` of a sector with ``geometry`` lie on (or within ``margin``
@@ -325,7 +343,7 @@ class PolarBackground:
                 cols = np.where(inside, self._col[(slots + db) % self._ring], -1)
                 ok = np.flatnonzero(cols >= 0)
                 c, r = cols[ok], rr[ok]
-                out[ok] |= _persistent(self._s[r, c], self._w[r, c], t - self._t_first[c], t - self._t_last[c],
+                out[ok] |= _persistent(self._s[r, c], self._w[c], t - self._t_first[c], t - self._t_last[c],
                                        self.config)
         return out
 
@@ -360,6 +378,10 @@ class GridBackground:
     The window is ``2 reach`` wide around the sonar position (``reach`` = the sector's maximum
     range), on a global lattice of ``cell`` metres so a moved window keeps the history of the cells
     it still covers. Cells are coarsened if the window would exceed ``max_map_cells``.
+
+    Storage wraps around: global cell ``(i, j)`` of an ``n`` x ``n`` window lives in slot
+    ``(i mod n, j mod n)``, so a window moved by a few cells clears the rows and columns of slots the
+    cells that left it held and copies nothing.
     """
 
     def __init__(self, config: StructureConfig, cell: float) -> None:
@@ -389,6 +411,11 @@ class GridBackground:
         i0, j0 = int(math.floor((x - reach) / cell)) - 1, int(math.floor((y - reach) / cell)) - 1
         if (i0, j0, n) == (self._i0, self._j0, self._n):
             return
+        if n == self._n:
+            # Moved: the slots of the rows and columns that left now hold those that entered.
+            self._clear(_entered(self._i0, i0, n), _entered(self._j0, j0, n))
+            self._i0, self._j0 = i0, j0
+            return
         new: dict[str, np.ndarray] = {'s': np.zeros(n * n, np.float32), 'w': np.zeros(n * n, np.float32),
                                       't_last': np.zeros(n * n), 't_first': np.full(n * n, np.nan)}
         if self._n:
@@ -396,19 +423,28 @@ class GridBackground:
             a0, a1 = max(i0, self._i0), min(i0 + n, self._i0 + self._n)
             b0, b1 = max(j0, self._j0), min(j0 + n, self._j0 + self._n)
             if a0 < a1 and b0 < b1:
+                gi, gj = np.arange(a0, a1), np.arange(b0, b1)
+                src = ((gi % self._n)[:, None] * self._n + (gj % self._n)[None, :]).ravel()
+                dst = ((gi % n)[:, None] * n + (gj % n)[None, :]).ravel()
                 for name in new:
-                    old = getattr(self, '_' + name).reshape(self._n, self._n)
-                    new[name].reshape(n, n)[a0 - i0:a1 - i0, b0 - j0:b1 - j0] = \
-                        old[a0 - self._i0:a1 - self._i0, b0 - self._j0:b1 - self._j0]
+                    new[name][dst] = getattr(self, '_' + name)[src]
         self._s, self._w, self._t_last, self._t_first = new['s'], new['w'], new['t_last'], new['t_first']
         self._i0, self._j0, self._n = i0, j0, n
 
+    def _clear(self, rows: np.ndarray, cols: np.ndarray) -> None:
+        """Slot rows ``rows`` and slot columns ``cols`` back to cells never looked at."""
+        n = self._n
+        for name, value in (('_s', 0.0), ('_w', 0.0), ('_t_last', 0.0), ('_t_first', np.nan)):
+            grid = getattr(self, name).reshape(n, n)
+            grid[rows, :] = value
+            grid[:, cols] = value
+
     def _index(self, x: np.ndarray, y: np.ndarray, di: int = 0, dj: int = 0) -> np.ndarray:
-        """Flat window index of the cell ``(di, dj)`` cells from each world point's, -1 outside."""
+        """Flat slot of the cell ``(di, dj)`` cells from each world point's, -1 outside the window."""
         i = np.floor(np.asarray(x) / self.cell).astype(np.int64) - self._i0 + di
         j = np.floor(np.asarray(y) / self.cell).astype(np.int64) - self._j0 + dj
         ok = (i >= 0) & (i < self._n) & (j >= 0) & (j < self._n)
-        return np.where(ok, i * self._n + j, -1)
+        return np.where(ok, ((i + self._i0) % self._n) * self._n + (j + self._j0) % self._n, -1)
 
     def update(self, samples, sensor_xy: tuple[float, float], reach: float, t: float) -> None:
         """One look: ``samples`` yields ``(x, y, echo)`` arrays of world points seen in this look (any
@@ -431,13 +467,37 @@ class GridBackground:
         i = np.floor(np.asarray(xs) / self.cell).astype(np.int64) - self._i0
         j = np.floor(np.asarray(ys) / self.cell).astype(np.int64) - self._j0
         ci, cj = (i >= 0) & (i < self._n), (j >= 0) & (j < self._n)
-        idx = i[None, ci] * self._n + j[cj, None]
+        idx = ((i[None, ci] + self._i0) % self._n) * self._n + (j[cj, None] + self._j0) % self._n
         sub = np.ix_(cj, ci)
         seen_map = np.zeros(self._n * self._n, bool)
         hit = np.zeros(self._n * self._n, bool)
         seen_map[idx[seen[sub]]] = True
         hit[idx[echo[sub] & seen[sub]]] = True
         self._look(seen_map, hit, t)
+
+    def update_sector(self, echo: np.ndarray, geometry: SectorGeometry, pose: tuple[float, float, float],
+                      reach: float, t: float) -> None:
+        """One look at a whole sector taken at ``pose``: what :meth:`update` does with the world
+        positions of all its cells (:func:`_sector_points`), computed cell by cell in one compiled
+        pass instead of arrays over the sector."""
+        self._follow(pose[0], pose[1], reach)
+        seen = np.zeros(self._n * self._n, np.bool_)
+        hit = np.zeros(self._n * self._n, np.bool_)
+        r, cos_b, sin_b = _sector_axes(geometry, pose)
+        _place_sector(r, cos_b, sin_b, float(pose[0]), float(pose[1]), self.cell, self._i0, self._j0, self._n,
+                      self._i0 % self._n, self._j0 % self._n, np.ascontiguousarray(echo, np.bool_), seen, hit)
+        forget = _FORGET * self.config.time_constant
+        keys = np.empty(_LAST_LOOKS)
+        table = np.full(2 * _LAST_LOOKS, -1, np.int64)
+        bits = self._t_last.view(np.int64)
+        n = _last_looks(seen, self._t_last, bits, self._t_first, float(t), forget, keys, table)
+        if n < 0:   # more distinct previous looks than the compiled pass takes
+            self._look(seen, hit, t)
+            return
+        # exp by numpy, as _decay takes it, once per previous look time (the cells share few)
+        decays = np.exp(-np.maximum(t - keys[:n], 0.0) / self.config.time_constant).astype(np.float32)
+        _apply_look(seen, hit, self._s, self._w, self._t_last, bits, self._t_first, float(t), forget,
+                    keys.view(np.int64), table, decays)
 
     def _look(self, seen: np.ndarray, hit: np.ndarray, t: float) -> None:
         """The echo-frequency rule on the cells ``seen`` (flat bool), echo where ``hit``."""
@@ -471,6 +531,110 @@ def _sector_points(geometry: SectorGeometry, pose: tuple[float, float, float], r
     r = geometry.range_min + geometry.range_resolution * np.asarray(rows, float)
     b = geometry.angle_min + geometry.angle_increment * np.asarray(beams, float) + pose[2]
     return pose[0] + r * np.cos(b), pose[1] + r * np.sin(b)
+
+
+def _sector_axes(geometry: SectorGeometry, pose: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray,
+                                                                                      np.ndarray]:
+    """Range of every row and the cosine and sine of every beam's world bearing, each value as
+    :func:`_sector_points` computes it for a cell of that row or beam."""
+    r = geometry.range_min + geometry.range_resolution * np.arange(geometry.n_bins, dtype=float)
+    b = geometry.angle_min + geometry.angle_increment * np.arange(geometry.n_beams, dtype=float) + pose[2]
+    return r, np.cos(b), np.sin(b)
+
+
+def _entered(old: int, new: int, n: int) -> np.ndarray:
+    """Slots (mod ``n``) of the global rows (or columns) in ``new .. new + n - 1`` that were not in
+    ``old .. old + n - 1``: all ``n`` when the window moved by ``n`` or more."""
+    if abs(new - old) >= n:
+        return np.arange(n)
+    first = old + n if new > old else new
+    return np.arange(first, first + abs(new - old)) % n
+
+
+@kernel
+def _place_sector(r, cos_b, sin_b, x0, y0, cell, i0, j0, n, slot_i0, slot_j0, echo, seen, hit):
+    """Marks the slots of the window's cells (``n`` x ``n`` from global cell ``(i0, j0)``, whose
+    slot is ``(slot_i0, slot_j0)``) that hold a sector cell's world position
+    ``(x0 + r cos b, y0 + r sin b)`` as seen, and as hit where it echoed."""
+    for row in range(r.shape[0]):
+        rr = r[row]
+        for beam in range(cos_b.shape[0]):
+            i = np.int64(np.floor((x0 + rr * cos_b[beam]) / cell)) - i0
+            j = np.int64(np.floor((y0 + rr * sin_b[beam]) / cell)) - j0
+            if 0 <= i < n and 0 <= j < n:
+                i += slot_i0
+                j += slot_j0
+                k = (i - n if i >= n else i) * n + (j - n if j >= n else j)
+                seen[k] = True
+                if echo[row, beam]:
+                    hit[k] = True
+
+
+@kernel
+def _slot_of(key, keys, table):
+    """The hash-table slot of the float64 bit pattern ``key`` (open addressing over ``table``, which
+    holds indices into ``keys``, -1 where empty): where it is, or the empty slot it would take."""
+    mask = table.shape[0] - 1
+    h = np.int64((np.uint64(key) * np.uint64(0x9E3779B97F4A7C15)) >> np.uint64(40)) & mask
+    while table[h] >= 0 and keys[table[h]] != key:
+        h = (h + 1) & mask
+    return h
+
+
+@kernel
+def _last_looks(seen, t_last, bits, t_first, t, forget, keys, table):
+    """The distinct previous look times of the cells ``seen`` that keep their history (not fresh, see
+    :func:`_decay`), into ``keys``, indexed by their bit patterns (``bits``: ``t_last`` as int64) in
+    ``table``; returns how many, or -1 when they do not fit."""
+    key_bits = keys.view(np.int64)
+    n = 0
+    last = np.int64(0)
+    have_last = False
+    for k in range(seen.shape[0]):
+        if not seen[k] or np.isnan(t_first[k]) or max(t - t_last[k], 0.0) > forget:
+            continue
+        b = bits[k]
+        if have_last and b == last:
+            continue
+        h = _slot_of(b, key_bits[:n], table)
+        if table[h] < 0:
+            if n == keys.shape[0]:
+                return -1
+            keys[n] = t_last[k]
+            table[h] = n
+            n += 1
+        last = b
+        have_last = True
+    return n
+
+
+@kernel
+def _apply_look(seen, hit, s, w, t_last, bits, t_first, t, forget, key_bits, table, decays):
+    """The echo-frequency rule (:func:`_decay`, then ``S <- S d + z``, ``W <- W d + 1`` in float32) on
+    the cells ``seen``; a cell that keeps its history takes the factor ``decays[m]`` of its previous
+    look time, entry ``m`` of :func:`_last_looks`' table."""
+    zero = np.float32(0.0)
+    one = np.float32(1.0)
+    n = decays.shape[0]
+    last = np.int64(0)
+    d_last = zero
+    have_last = False
+    for k in range(seen.shape[0]):
+        if not seen[k]:
+            continue
+        if np.isnan(t_first[k]) or max(t - t_last[k], 0.0) > forget:
+            d = zero
+            t_first[k] = t
+        else:
+            b = bits[k]
+            if not (have_last and b == last):
+                d_last = decays[table[_slot_of(b, key_bits[:n], table)]]
+                last = b
+                have_last = True
+            d = d_last
+        t_last[k] = t
+        s[k] = s[k] * d + (one if hit[k] else zero)
+        w[k] = w[k] * d + one
 
 
 class SectorBackground:
@@ -519,15 +683,8 @@ class SectorBackground:
             self.polar.update(echo, geometry, t)
         if not world:
             return
-        per = max(1, _CHUNK // geometry.n_bins)
-
-        def chunks():
-            for j0 in range(0, geometry.n_beams, per):
-                rows, beams = np.indices((geometry.n_bins, min(per, geometry.n_beams - j0)))
-                x, y = _sector_points(geometry, pose, rows.ravel(), beams.ravel() + j0)
-                yield x, y, echo[:, j0:j0 + per].ravel()
         reach = geometry.range_max + geometry.range_resolution
-        self._grid(geometry).update(chunks(), (pose[0], pose[1]), reach, t)
+        self._grid(geometry).update_sector(echo, geometry, pose, reach, t)
 
     def persistent(self, rows: np.ndarray, beams: np.ndarray, geometry: SectorGeometry,
                    pose: tuple[float, float, float], t: float) -> np.ndarray:

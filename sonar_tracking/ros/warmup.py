@@ -65,17 +65,23 @@ def tracker(config: TrackerConfig) -> float:
 
 
 def detector(config: DetectorConfig, desired_density: float) -> float:
-    """Runs a throwaway :class:`ActiveDetector` of ``config`` over three synthetic sectors of
-    Rayleigh clutter (SCMDE's neighbour search and edge correction, the ESC focus disc). Returns
-    the seconds it took."""
+    """Runs a throwaway :class:`ActiveDetector` of ``config`` over four synthetic sectors: three of
+    Rayleigh clutter (SCMDE's neighbour search and edge correction, the ESC focus disc, CFAR's
+    window sums) and one of quiet water with 15 strong cells (the joining of sparse above-threshold
+    cells), the last two from a moved pose (the structure background's world map). Returns the
+    seconds it took."""
     started = time.perf_counter()
     rng = np.random.default_rng(_SEED)
     det = ActiveDetector(config, desired_density)
     geometry = SectorGeometry(range_min=10.0, range_max=500.0, n_bins=100, angle_min=-0.3,
                               angle_increment=0.01, n_beams=60)
-    for k in range(3):
+    for k in range(4):
         amplitudes = rng.rayleigh(1.0, (geometry.n_bins, geometry.n_beams))
-        det.process(amplitudes, geometry, (0.0, 0.0, 0.0), focus_xy=(250.0, 0.0), stamp=float(k))
+        if k == 3:   # 15 cells 20 apart above any threshold, the rest far below
+            amplitudes *= 1e-3
+            amplitudes[10:100:20, 5:60:20] = 100.0
+        pose = (0.0, 0.0, 0.0) if k < 2 else (5.0, 2.0, 0.05)
+        det.process(amplitudes, geometry, pose, focus_xy=(250.0, 0.0), stamp=float(k))
     return time.perf_counter() - started
 
 
@@ -109,8 +115,10 @@ def main() -> int:
     from sonar_tracking import process
     from sonar_tracking.core.gpf import GpfTracker
     process.prepare()
+    imaging = DetectorConfig.from_flat({'threshold.method': 'ca', 'cells.grouping': 'connected', 'cells.merge_bins': 3,
+                                        'cells.merge_beams': 3, 'structure.enabled': True})   # CFAR, blobs, structure
     seconds = (tracker(TrackerConfig.from_flat({'imm.models': 'cv,ccw,cw'})) + detector(DetectorConfig(), 1e-5)
-               + gpf(lambda: GpfTracker(rng=np.random.default_rng(0))))
+               + detector(imaging, 1e-5) + gpf(lambda: GpfTracker(rng=np.random.default_rng(0))))
     print(f'compiled kernels ready in {seconds:.1f} s')
     return 0
 

@@ -29,6 +29,10 @@ detector's threshold) from ``alpha_0`` to hold a desired false-detection density
 is not exponential (K-distributed clutter gives cell-averaging CFAR many more false alarms than
 designed).
 
+``ca`` normalises a frame in one compiled pass over the window sums (:func:`_ca_normalise`) with
+the array formula's arithmetic, to the last bit, fast enough for an imaging sonar's 512 x 1000
+cells at 20 Hz.
+
 Correlated cells: an imaging sonar forms more beams than its beam width resolves, and a pulse spans
 several fine range bins, so neighbouring cells are correlated. The formulas hold for independent
 training cells: set the strides to about one resolution cell (beam width over beam spacing, pulse
@@ -45,6 +49,7 @@ from scipy.special import gammaln
 
 from sonar_tracking.core.background import Window, measured, window_order, window_sums
 from sonar_tracking.core.config import Config, ConfigError, setting
+from sonar_tracking.core.jit import kernel
 
 __all__ = ['CFAR_METHODS', 'MAX_TRAINING_CELLS', 'CfarConfig', 'Cfar', 'pfa', 'design_scale']
 
@@ -202,9 +207,35 @@ class Cfar:
         ``q > alpha0`` is the design test at every tested cell; a threshold ``alpha`` on ``q`` is that
         test at another scale."""
         p = np.asarray(power, dtype=np.float32)
+        if self.method == 'ca' and p.ndim == 2 and p.size:
+            p = np.ascontiguousarray(p)
+            sums = window_sums(p, self.window, floor=floor)
+            q = np.empty(p.shape, np.float32)
+            _ca_normalise(p, sums.total, sums.count, self._ratio, float(floor), q)
+            return q
         z, ratio = self.level(p, floor)
         with np.errstate(invalid='ignore', divide='ignore', over='ignore'):
             denom = z * ratio
             tested = np.isfinite(denom) & (denom > 0) & (measured(p) | (floor > 0) & np.isfinite(p))
             q = np.where(tested, p / np.where(tested, denom, 1.0), np.nan)
         return q.astype(np.float32)
+
+
+@kernel
+def _ca_normalise(power, total, count, ratio, floor, out):
+    """:meth:`Cfar.normalise` for ``ca`` in one pass, with the same arithmetic as its array code: the
+    level ``Z`` = total / max(count, 1) in float32, ``Z c`` and ``P / (Z c)`` in float64, rounded to
+    float32; NaN where the cell is not tested."""
+    one = np.float32(1.0)
+    n_rows, n_cols = power.shape
+    for y in range(n_rows):
+        for x in range(n_cols):
+            p = power[y, x]
+            c = count[y, x]
+            z = total[y, x] / (c if c > one else one)
+            denom = np.float64(z) * ratio[np.intp(c)]
+            data = np.isfinite(p) and (p != 0 or floor > 0)
+            if data and np.isfinite(denom) and denom > 0:
+                out[y, x] = np.float32(np.float64(p) / denom)
+            else:
+                out[y, x] = np.nan
