@@ -49,7 +49,7 @@ from sonar_tracking.studies.imaging_study import CLEARANCE, GATE, GOSPA, Imaging
 from sonar_tracking.studies.montecarlo import RunPool, run_monte_carlo
 
 __all__ = ['PARTS', 'PFA_GRID', 'CFAR_METHODS', 'RHO_GRID', 'T_GRID', 'REDUCED', 'TUNED_ON', 'run_table',
-           'format_table', 'Sizes']
+           'format_table', 'Sizes', 'with_comparisons']
 
 PARTS = ('roc', 'esc', 'static', 'diver', 'school')
 SENSOR = 'oculus_m750d'
@@ -222,7 +222,16 @@ def run_table(split: SeedSplit, sizes: Sizes, parts=PARTS, pool: RunPool | None 
                            'gospa': GOSPA.describe(), 'gate': GATE, 'clearance': CLEARANCE, 'parts': list(parts)}
     for part in parts:
         out[part] = _PART_FUNCS[part](split, sizes, pool, prog)
-    return out
+    return with_comparisons(out)
+
+
+def with_comparisons(result: dict) -> dict:
+    """``result`` with the paired comparisons of its parts where every results table keeps them
+    (``correction``, ``cells``: the school's JIPDA against IPDA)."""
+    school = result.get('school')
+    result['correction'] = school['correction'] if school else Correction(intervals=1).describe()
+    result['cells'] = [{'cell': 'school', 'comparisons': school['comparisons']}] if school else []
+    return result
 
 
 # -- the docs table ---------------------------------------------------------------------------------
@@ -265,8 +274,9 @@ def format_table(result: dict) -> str:
                          f'{_ci(v["esc_off"]["after"])} | {v["esc_on"]["after"]["n"]} |')
     if 'static' in result:
         st = result['static']
-        lines += ['', f'**Static empty scene, frozen speckle** (`imaging_empty`, frames reduced {st["scale"]}x where '
-                  f'> 1):', '', '| seed | minutes | confirmed tracks | false detections / frame |', '|---|---|---|---|']
+        size = 'full frames' if st['scale'] == 1 else f'frames reduced {st["scale"]}x'
+        lines += ['', f'**Static empty scene, frozen speckle** (`imaging_empty`, {size}):', '',
+                  '| seed | minutes | confirmed tracks | false detections / frame |', '|---|---|---|---|']
         for s, v in st['sets'].items():
             lines.append(f'| {s} | {v["minutes"]:.1f} | {v["confirmed_tracks"]} | {v["false_per_frame"]:.3g} |')
     if 'diver' in result:
@@ -285,7 +295,10 @@ def format_table(result: dict) -> str:
         lines += ['', f'**Crossing school** (`imaging_school`, frames reduced {sc["scale"]}x, cells.target_size 0.3 m; '
                   f'T_c of least calibration GOSPA: IPDA {sc["choice"]["ipda"]["value"]:g}, JIPDA '
                   f'{sc["choice"]["jipda"]["value"]:g}). JIPDA ahead on GOSPA on both evaluation seed sets: '
-                  f'{"yes" if sc["jipda_lead_on_both_sets"] else "no"}.', '',
+                  f'{"yes" if sc["jipda_lead_on_both_sets"] else "no"}. P_D of a fish '
+                  f'{_ci(sc["methods"]["ipda"]["pd"])}; CTTR IPDA {_ci(sc["methods"]["ipda"]["cttr"])}, JIPDA '
+                  f'{_ci(sc["methods"]["jipda"]["cttr"])}; GOSPA IPDA {_ci(sc["methods"]["ipda"]["gospa"])}, JIPDA '
+                  f'{_ci(sc["methods"]["jipda"]["gospa"])} m.', '',
                   f'Paired per-run differences JIPDA − IPDA; {corr.text()}; {AGREEMENT_RULE}.', '']
         rows = [('school', k['metric'], k) for k in sc['comparisons']]
         lines += format_comparisons(rows, [str(s) for s in seeds['evaluation']])

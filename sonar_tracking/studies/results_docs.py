@@ -21,6 +21,7 @@ TABLES = (
     ('fls_gpf.md', 'fls_table_crossings.json', 'sonar_tracking.studies.fls_table'),
     ('fls_gpf.md', 'fls_table_single.json', 'sonar_tracking.studies.fls_table'),
     ('jipda.md', 'jipda_table.json', 'sonar_tracking.studies.jipda_table'),
+    ('imaging.md', 'imaging_table.json', 'sonar_tracking.studies.imaging_table'),
 )
 
 BEGIN = '<!-- generated from {json} by {module}.format_table; do not edit by hand -->'
