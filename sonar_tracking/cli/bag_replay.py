@@ -21,9 +21,19 @@ messages), and it is published at least every 10 ms of wall time while replaying
 the replayer refuses to start (exit code 3) when another node already publishes ``/clock``: two
 clocks would make every ``use_sim_time`` node jump between them.
 
+Start condition. ``--wait-for TOPIC ...`` starts once each of these topics has a subscriber and
+every node of the graph that publishes its state (the package's processing nodes and ``sonar_stack``:
+``NODE/status``, :mod:`sonar_tracking.ros.status`) takes input, i.e. none says ``starting`` (a
+node still loading its kernels would miss the first messages), then waits up to 2 s more for
+every subscriber the graph shows on those topics to be matched. ``--wait-ready [NODE ...]`` waits
+for the state of the nodes named (fully qualified, ``/active_detector``), or with no name of every
+node of the graph that publishes one, also without ``--wait-for``. Both wait ``--wait-timeout``
+seconds in all.
+
 Exit codes: 0 = replayed; 1 = the bag cannot be read (no such path, as a recorder killed before it
-created its folder leaves it; an empty folder; not a bag) or a ``--wait-for`` topic got no
-subscriber in time; 2 = bad arguments; 3 = ``--clock`` refused: another node publishes ``/clock``.
+created its folder leaves it; an empty folder; not a bag), or a ``--wait-for`` topic got no
+subscriber or a node still said ``starting`` after ``--wait-timeout``; 2 = bad arguments; 3 =
+``--clock`` refused: another node publishes ``/clock``.
 """
 from __future__ import annotations
 
@@ -198,11 +208,61 @@ def _other_clock(node, stop: threading.Event) -> bool:
     return False
 
 
+#: How long an automatic readiness wait looks at the graph before it trusts the set of nodes it found [s].
+READY_DISCOVERY = 0.5
+#: How long the replay waits, after the start condition, for every subscriber the graph shows on a
+#: ``--wait-for`` topic to be matched (one with a QoS that never matches is not waited for longer) [s].
+MATCH_WAIT = 2.0
+
+
+def _wait_ready(node, names: list[str] | None, deadline: float, stop: threading.Event, log) -> bool:
+    """Wait until none of the nodes ``names`` (None: every node of the graph that publishes a state)
+    says ``starting``; False (logged) at ``deadline``."""
+    import rclpy
+
+    from sonar_tracking.ros.status import StatusWatch
+    watch = StatusWatch(node, names)
+    earliest = time.monotonic() + (READY_DISCOVERY if names is None else 0.0)
+    said = None
+    try:
+        while not stop.is_set():
+            if watch.auto:
+                watch.discover()
+            rclpy.spin_once(node, timeout_sec=0.02)
+            waiting = watch.waiting()
+            now = time.monotonic()
+            if not waiting and now >= earliest:
+                if watch.states():
+                    log.info('every node takes input: ' + ', '.join(f'{n} ({s})' for n, s in
+                                                                     sorted(watch.states().items())))
+                return True
+            if waiting and waiting != said:
+                said = waiting
+                log.info('waiting for nodes to take input: ' + ', '.join(waiting))
+            if now > deadline:
+                log.error('still not taking input at the end of --wait-timeout: ' + ', '.join(waiting))
+                return False
+        return True
+    finally:
+        watch.close()
+
+
+def _wait_matched(node, publishers: dict, topics: list[str], stop: threading.Event) -> None:
+    """Wait up to :data:`MATCH_WAIT` for every subscriber the graph shows on ``topics`` to be matched."""
+    until = time.monotonic() + MATCH_WAIT
+    chosen = [(name, publishers[name]) for name in topics if name in publishers]
+    while not stop.is_set() and time.monotonic() < until:
+        if all(pub.get_subscription_count() >= node.count_subscribers(name) for name, pub in chosen):
+            return
+        time.sleep(0.02)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``bag_replay``."""
     parser = argparse.ArgumentParser(prog='bag_replay', description=__doc__.split('\n\n')[0],
-                                     epilog='Exit codes: 0 replayed, 1 bag unreadable or no subscriber in time, '
-                                            '2 bad arguments, 3 --clock refused (another node publishes /clock).')
+                                     epilog='Exit codes: 0 replayed, 1 bag unreadable, or no subscriber or a node '
+                                            'still starting in time, 2 bad arguments, 3 --clock refused (another '
+                                            'node publishes /clock).')
     parser.add_argument('bag', type=Path, help='bag directory (or .mcap file)')
     pace = parser.add_mutually_exclusive_group()
     pace.add_argument('--rate', type=float, default=1.0, help='speed factor (default 1.0 = as recorded)')
@@ -214,8 +274,13 @@ def main(argv: list[str] | None = None) -> int:
                         help='publish /clock from the replayed messages\' header stamps (see the clock model above); '
                              'refused when another node publishes /clock')
     parser.add_argument('--wait-for', nargs='+', default=[], metavar='TOPIC',
-                        help='start once each of these topics has a subscriber')
-    parser.add_argument('--wait-timeout', type=float, default=60.0)
+                        help='start once each of these topics has a subscriber and no node of the graph says it is '
+                             'starting (NODE/status)')
+    parser.add_argument('--wait-ready', nargs='*', default=None, metavar='NODE',
+                        help='start once none of these nodes (/active_detector; none named: every node with a '
+                             'NODE/status topic) says it is starting')
+    parser.add_argument('--wait-timeout', type=float, default=60.0,
+                        help='longest wait for --wait-for and --wait-ready in all [s] (default 60)')
     args, ros_args = parser.parse_known_args(argv)
     if not 0 < args.rate < float('inf') or args.repeat < 1:
         print('error: --rate must be > 0 and finite, --repeat >= 1', file=sys.stderr)
@@ -283,6 +348,13 @@ def main(argv: list[str] | None = None) -> int:
                 rclpy.try_shutdown()
                 return EXIT_UNREADABLE
             time.sleep(0.02)
+    if (args.wait_for or args.wait_ready is not None) and not stop.is_set():
+        names = ['/' + n.lstrip('/') for n in args.wait_ready] if args.wait_ready else None
+        if not _wait_ready(node, names, deadline, stop, log):
+            node.destroy_node()
+            rclpy.try_shutdown()
+            return EXIT_UNREADABLE
+        _wait_matched(node, publishers, args.wait_for, stop)
 
     clock = None
     if args.clock:

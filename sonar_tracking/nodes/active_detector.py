@@ -11,7 +11,8 @@ a detection where its intensity exceeds alpha times the level of its training ce
 threshold and the stamp of the scan it was applied to). Services ``~/esc/enable`` (SetBool; sets
 the ``esc.enabled`` parameter, so both always agree) and ``~/esc/reset`` (Trigger; the response
 message is the state as JSON: threshold, clutter density, scan count after the reset, and under
-``reset_from`` the state that was reset).
+``reset_from`` the state that was reset). Its state is on ``~/status`` (starting, learning while
+the structure background holds detections back, ready: :mod:`sonar_tracking.ros.status`).
 
 Sector input (pairing, bad messages, the time rule, the pose from odometry) is
 :class:`~sonar_tracking.ros.sector_input.SectorInput`; a jump back in time restarts the detector
@@ -49,6 +50,7 @@ from sonar_tracking.ros import (
     output_profile,
     run_node,
     warmup,
+    warmup_left,
 )
 
 __all__ = ['DetectorNodeConfig', 'ActiveDetectorNode', 'main', 'desired_density']
@@ -80,6 +82,8 @@ class ActiveDetectorNode(SonarNode):
                          check=desired_density, **kwargs)
         self.detector = ActiveDetector(detector_config(self.config), desired_density(self.config))
         self.warm_up(warmup.detector, self.detector.config, self.detector.desired_density)
+        self.watch_warmup(lambda: warmup_left(self.detector.warmup, self.detector.config.structure,
+                                              None if self.time.last_ns is None else self.time.last_ns / 1e9))
         self.best_track: tuple[float, float] | None = None
         self.tracked: np.ndarray | None = None      # confirmed tracks' positions (esc.exclude_radius)
         self.input = SectorInput(self, self._process, self._on_reset)

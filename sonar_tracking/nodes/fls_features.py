@@ -15,8 +15,10 @@ in the image):
   the image's frame, ``range, bearing`` from the sonar, features ``f01..f30`` (Table 2); width 0
   when there are none;
 
-and ``diagnostics`` once a second. ``frame: world`` (default) places sectors by their pose in
-``world_frame``; ``frame: sensor`` paints them in the sonar's own frame (a static sonar).
+``diagnostics`` once a second, and ``~/status`` (starting, learning while the structure
+background holds regions back, ready: :mod:`sonar_tracking.ros.status`). ``frame: world``
+(default) places sectors by their pose in ``world_frame``; ``frame: sensor`` paints them in the
+sonar's own frame (a static sonar).
 
 Bad input (unknown encoding, image and geometry that disagree, an empty, all-zero or non-finite
 sector, a late stamp) is logged and the message dropped; the node keeps running. A jump back in
@@ -35,7 +37,7 @@ import sonar_tracking.msgs as ma
 from sonar_tracking.core.config import setting
 from sonar_tracking.core.fls import FlsConfig, FlsFrame, FlsInputError, FlsProcessor
 from sonar_tracking.msgs.map_info import grid_to_map_info
-from sonar_tracking.ros import SectorInput, SectorInputConfig, SonarNode, output_profile, run_node
+from sonar_tracking.ros import SectorInput, SectorInputConfig, SonarNode, output_profile, run_node, warmup_left
 
 __all__ = ['FlsNodeConfig', 'FlsFeaturesNode', 'main']
 
@@ -63,7 +65,9 @@ class FlsFeaturesNode(SonarNode):
         self.processor = FlsProcessor(self.config)
         self._ns_of: OrderedDict[float, int] = OrderedDict()
         self._t0_ns: int | None = None
+        self._t: float | None = None     # the last sector's time on the processor's clock [s]
         self.frames = 0
+        self.watch_warmup(lambda: warmup_left(self.processor.warmup, self.processor.config.structure, self._t))
         self.input = SectorInput(self, self._process, self._on_reset, use_odometry=lambda: self.config.frame == 'world')
         out = output_profile(50)
         self.pub_info = self.create_publisher(MapMetaData, 'fls/image_info', out)
@@ -83,7 +87,7 @@ class FlsFeaturesNode(SonarNode):
     # -- processing --------------------------------------------------------------------------
     def _on_reset(self) -> None:
         self.processor.reset()
-        self._t0_ns = None
+        self._t0_ns = self._t = None
 
     def _process(self, stamp_ns: int, amplitudes, geometry, pose, frame_id: str) -> bool:
         started = time.perf_counter()
@@ -96,6 +100,7 @@ class FlsFeaturesNode(SonarNode):
             self.say('error', f'sector at {stamp_ns / 1e9:.3f} s dropped: {exc}', 'bad_values')
             return False
         self._ns_of[t] = stamp_ns
+        self._t = t
         while len(self._ns_of) > 256:
             self._ns_of.popitem(last=False)
         self._frame_id = self.config.world_frame if self.config.frame == 'world' else (frame_id or 'sonar')

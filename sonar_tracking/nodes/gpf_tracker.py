@@ -13,7 +13,8 @@ it the ``sonar_pose`` parameter). A frame is tracked once its three messages are
 never find their partners are dropped with a warning. Publishes ``gpf/tracks`` (GPF_TRACK_DTYPE:
 id, state, confirmed, the fusion used in the last update, 0 = MF, 1 = WF, covariance; confirmed
 tracks, tentative ones too with ``publish_tentative``; width 0 when there are none),
-``gpf/tracks/markers`` (RViz, namespace ``gpf``) and ``diagnostics``.
+``gpf/tracks/markers`` (RViz, namespace ``gpf``), ``diagnostics`` and ``~/status`` (starting while
+its kernels load, then ready: :mod:`sonar_tracking.ros.status`).
 
 Every setting of :class:`~sonar_tracking.core.gpf.GpfConfig` is a parameter with a descriptor
 (``particles`` K, ``cues.features`` defaulting to the paper's 20, 17, 3, 6, 24, ``fusion.mode``

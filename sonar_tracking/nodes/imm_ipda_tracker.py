@@ -7,7 +7,8 @@ already in the detections; it places the coverage window and shows in the diagno
 ``coverage: scan``, ``sonar/sector_info`` (the window each scan covered: a track that stays outside
 it for ``track.outside_time`` ends). Publishes ``tracks`` (``TRACK_DTYPE``: confirmed
 tracks, and tentative ones too with ``publish_tentative``; width 0 when there are none),
-``tracks/markers`` and ``diagnostics``.
+``tracks/markers``, ``diagnostics`` and ``~/status`` (starting while its kernels load, then
+ready: :mod:`sonar_tracking.ros.status`).
 
 Every model setting and threshold is a parameter with a descriptor
 (``ros2 param describe /imm_ipda_tracker NAME``); changes apply to the running tracker, and a

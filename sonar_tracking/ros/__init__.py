@@ -2,7 +2,8 @@
 
 Process set-up and ``main`` (:mod:`.runtime`), parameters from core configs (:mod:`.params`),
 QoS profiles (:mod:`.qos`), the time rule (:mod:`.timeline`), the sonar pose (:mod:`.pose`),
-diagnostics (:mod:`.diagnostics`), the processing-node base with guarded callbacks (:mod:`.node`),
+diagnostics (:mod:`.diagnostics`), a node's state: starting, learning, ready (:mod:`.status`), the
+processing-node base with guarded callbacks (:mod:`.node`),
 sector input (:mod:`.sector_input`), and a simulated source's pace and stamps (:mod:`.pacing`).
 Nodes in ``sonar_tracking.nodes`` only wire these to the core.
 """
@@ -16,6 +17,7 @@ from sonar_tracking.ros.pose import Pose, PoseConfig, PoseSource, check_sonar_po
 from sonar_tracking.ros.qos import CLOCK_TOPIC, INPUT_QOS, input_profile, latest_profile, output_profile
 from sonar_tracking.ros.runtime import configure_dds, prepare_process, run_node
 from sonar_tracking.ros.sector_input import SectorInput, SectorInputConfig
+from sonar_tracking.ros.status import LEARNING, READY, STARTING, NodeStatus, StatusWatch, warmup_left
 from sonar_tracking.ros.timeline import LATE, NEW, RESET, TimeGuard
 from sonar_tracking.ros.track_output import TrackOutput, TrackOutputConfig
 
@@ -25,5 +27,6 @@ __all__ = [
     'Pose', 'PoseConfig', 'PoseSource', 'check_sonar_pose', 'CLOCK_TOPIC', 'INPUT_QOS', 'input_profile',
     'latest_profile', 'output_profile', 'configure_dds', 'prepare_process', 'run_node', 'SectorInput',
     'SectorInputConfig', 'LATE', 'NEW', 'RESET', 'TimeGuard', 'SubscriberGate',
-    'TrackOutput', 'TrackOutputConfig', 'CoverageSource',
+    'TrackOutput', 'TrackOutputConfig', 'CoverageSource', 'STARTING', 'LEARNING', 'READY', 'NodeStatus',
+    'StatusWatch', 'warmup_left',
 ]

@@ -17,7 +17,11 @@ diagnostics, and then only wires subscriptions and publishers to its core compon
 * ``self.diag`` (:class:`~sonar_tracking.ros.diagnostics.StageDiagnostics`) is published on
   ``diagnostics`` once a second, and at once by ``self.report_now()`` when the node's state changes
   (a node calls it after a reset or an enable; a restart after a jump back in time and an accepted
-  parameter change publish it here); ``self.say(...)`` logs a problem at most once a second per kind.
+  parameter change publish it here); ``self.say(...)`` logs a problem at most once a second per kind;
+* the node's state (:mod:`sonar_tracking.ros.status`: ``starting`` until it is built and spins,
+  then ``learning`` while the seconds of ``self.watch_warmup(left)`` are above 0, else ``ready``)
+  is published on ``~/status`` and in the diagnostics (``state``, ``warmup_left_s``), looked at
+  after every guarded callback, each diagnostics report and each accepted parameter change.
 """
 from __future__ import annotations
 
@@ -26,13 +30,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.node import Node
 
 from sonar_tracking.core.config import Config, setting
 from sonar_tracking.ros.diagnostics import QUEUE_OVERFLOW, SequenceGaps, StageDiagnostics
 from sonar_tracking.ros.params import ConfigParameters
 from sonar_tracking.ros.qos import INPUT_QOS, input_profile
+from sonar_tracking.ros.status import LEARNING, READY, STARTING, NodeStatus
 from sonar_tracking.ros.timeline import LATE, RESET, TimeGuard
 
 __all__ = ['InputConfig', 'SonarNode']
@@ -56,12 +61,20 @@ class SonarNode(Node):
     def __init__(self, name: str, config: Config, diag_name: str, *, mutable: set[str] | None = None,
                  skip: tuple[str, ...] = (), check: Callable[[Config], None] | None = None, **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
+        self.node_status = NodeStatus(self)
         self.diag = StageDiagnostics(diag_name)
         self.pub_diag = self.create_publisher(DiagnosticArray, 'diagnostics', 10)
+        self._warmup_left: Callable[[], float] | None = None
+        self._spinning = False
+        self._show_status(STARTING, 0.0)
+        self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))
         self.params = ConfigParameters(self, config, on_change=self._changed, skip=skip, mutable=mutable, check=check)
         self.time = TimeGuard()
         self._restarts = 0
         self.create_timer(1.0, self._publish_diagnostics)
+        # Timers run only once the executor spins, which is after the whole node (the subclass
+        # included) is built: this one ends the 'starting' state.
+        self._start_timer = self.create_timer(0.001, self._started)
 
     @property
     def config(self) -> Any:
@@ -77,6 +90,45 @@ class SonarNode(Node):
         changed = [f'{k}={after[k]}' for k in after if after[k] != before.get(k)]
         self.diag.status['last_parameter_change'] = ', '.join(changed)
         self.report_now()
+
+    # -- state: starting, learning, ready ------------------------------------------------------
+    def watch_warmup(self, left: Callable[[], float]) -> None:
+        """Say ``learning`` while ``left()``, the seconds of input the node still holds its output
+        back for (:func:`sonar_tracking.ros.status.warmup_left`), is above 0, and ``ready`` after."""
+        self._warmup_left = left
+
+    def _started(self) -> None:
+        self.destroy_timer(self._start_timer)
+        self._spinning = True
+        self._update_status()
+        self.report_now()
+
+    def _update_status(self) -> bool:
+        """Look at the node's state; True when it changed (and was published on ``~/status``)."""
+        if not self._spinning:
+            return False
+        try:
+            left = self._warmup_left() if self._warmup_left is not None else 0.0
+        except Exception as exc:  # noqa: BLE001 - a state that cannot be read must not cost a message
+            self.say('error', f'warm-up state unreadable: {type(exc).__name__}: {exc}')
+            return False
+        return self._show_status(LEARNING if left > 0 else READY, left)
+
+    def _show_status(self, state: str, left: float) -> bool:
+        if state == STARTING:
+            detail = 'starting: parameters and compiled kernels; no input is taken yet'
+        elif state == LEARNING:
+            detail = 'learning the structure background: no output for seconds_left more seconds of input'
+        else:
+            detail = 'ready'
+        changed = self.node_status.set(state, left, detail)
+        self.diag.status['state'] = state
+        if self._warmup_left is not None:
+            self.diag.status['warmup_left_s'] = f'{left:.1f}'
+        self.diag.condition('status', None if state == READY else (
+            f'learning the structure background: {left:.1f} s of input left, no output until then'
+            if state == LEARNING else 'starting: no input taken yet'), DiagnosticStatus.OK)
+        return changed
 
     def warm_up(self, run: Callable[..., float], *args: Any) -> None:
         """Run a component's warm-up (:mod:`sonar_tracking.ros.warmup`) before subscribing, so
@@ -161,6 +213,8 @@ class SonarNode(Node):
             except Exception as exc:  # noqa: BLE001 - a bug must cost one message, not the node
                 self.say('error', f'{what} dropped after an internal error: {type(exc).__name__}: {exc}',
                          reason='internal_error')
+            if self._update_status():
+                self.report_now()
         return run
 
     def say(self, severity: str, text: str, reason: str | None = None) -> None:
@@ -177,9 +231,11 @@ class SonarNode(Node):
         self._publish_diagnostics()
 
     def _publish_diagnostics(self) -> None:
+        self._update_status()
         # Matched readers per output: whether anyone receives this node's results (and a condition tests wait on).
+        own = (self.pub_diag, self.node_status.pub)
         self.diag.listeners = {p.topic_name: p.get_subscription_count() for p in self.publishers
-                               if p is not self.pub_diag and p.topic_name != '/parameter_events'}
+                               if p not in own and p.topic_name != '/parameter_events'}
         self.diag.values.update(self.status_values())
         self.pub_diag.publish(self.diag.array(self.get_clock().now().to_msg()))
 
