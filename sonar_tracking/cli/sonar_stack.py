@@ -32,7 +32,10 @@ SIGINT to every child and waits up to 5 s in all before killing what is left; ch
 SIGTERM from the kernel if the stack itself dies (Linux ``PR_SET_PDEATHSIG``), so none is left
 behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none),
 started first; nodes with ``wait_for`` then also wait for the recorder to listen. ``--view``
-likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`` passes it options).
+likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`` passes it options),
+logging every record message of the whole run (``--always --qos reliable``); when the pipeline ends
+by itself, the stack stops its nodes but keeps the view serving the run to a browser until Ctrl-C
+or SIGTERM (which during the run stop the view with the rest).
 
 Namespaces: ``namespace:`` at the top of the file puts the whole stack there, and a node's own
 ``namespace:`` puts that node there (a relative one under the stack's, an absolute one as it is).
@@ -51,6 +54,20 @@ sets a parameter of one node of the stack over its file and parameters, the valu
 (``--set seaking_sim.duration=30``, ``--set active_detector.esc.enabled=false``); a number in
 exponent form without a decimal point (``1e-5``) is a number, not the string YAML 1.1 makes it.
 ``--dry-run`` prints the children's command lines and exits.
+
+Sensor presets: ``--preset NAME`` gives every node whose parameter file is a sensor preset (a file
+of the package's ``config/sensors/``) the preset ``NAME`` instead (``config/sensors/NAME.yaml``, or
+a path to your own preset file): ``sonar_stack recording --preset aris_didson``.
+
+Readiness: the package's processing nodes say on ``~/status`` whether they take input yet
+(``starting``, ``learning``, ``ready``: :mod:`sonar_tracking.ros.status`), and the stack publishes
+the least ready state of its nodes, with each node's, on ``sonar_stack/status`` in its namespace
+(the same latched record). A node with ``wait_ready: true`` starts only once no node of the stack
+says ``starting`` (besides its ``wait_for``). ``--replay "BAG [bag_replay options]"`` replays a
+recording into the stack so: ``bag_replay`` starts once every node takes input (and the recorder
+listens, with ``--record``), waits for ``/sonar/sector`` and ``/sonar/sector_info`` to be matched,
+and the stack stops when the replay ends (``sonar_stack recording_active --replay rec_sectors
+--record out/run``). The bag's topics are absolute, so ``--replay`` runs in the root namespace only.
 """
 from __future__ import annotations
 
@@ -73,9 +90,17 @@ import yaml
 from sonar_tracking import process
 
 __all__ = ['main', 'StackConfig', 'NodeSpec', 'StackError', 'load_stack', 'find_stack', 'shipped_stacks',
-           'apply_settings', 'move', 'command', 'resolve_name', 'check_params_files', 'PACKAGE_PREFIX']
+           'apply_settings', 'move', 'command', 'resolve_name', 'check_params_files', 'PACKAGE_PREFIX',
+           'apply_preset', 'sensor_presets', 'add_replay', 'node_name', 'STATUS_EXECUTABLES', 'REPLAY_WAIT']
 
 _ON_EXIT = ('stop', 'restart', 'ignore')
+
+#: The executables whose nodes publish their state on ``~/status`` (the package's processing nodes,
+#: :class:`~sonar_tracking.ros.node.SonarNode`); their node names are the executables' names.
+STATUS_EXECUTABLES = frozenset({'active_detector', 'imm_ipda_tracker', 'fls_features', 'gpf_tracker',
+                                'projected_sonar_adapter'})
+#: Topics a ``--replay`` waits to be matched with the stack's readers (a recording's input).
+REPLAY_WAIT = ('/sonar/sector', '/sonar/sector_info')
 
 
 class StackError(ValueError):
@@ -95,6 +120,7 @@ class NodeSpec:
     extra_args: list = field(default_factory=list)
     wait_for: dict = field(default_factory=dict)
     namespace: str = '/'
+    wait_ready: bool = False
 
 
 @dataclass
@@ -147,7 +173,8 @@ def _resolve(path: str, base: Path) -> Path:
 
 _NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 _STACK_KEYS = {'nodes', 'on_exit', 'max_restarts', 'stop_delay', 'record', 'namespace'}
-_NODE_KEYS = {'executable', 'params_file', 'parameters', 'remappings', 'on_exit', 'args', 'wait_for', 'namespace'}
+_NODE_KEYS = {'executable', 'params_file', 'parameters', 'remappings', 'on_exit', 'args', 'wait_for', 'namespace',
+              'wait_ready'}
 
 
 def _namespace(text, where: str) -> str:
@@ -214,6 +241,9 @@ def load_stack(path: Path) -> StackConfig:
         wait_for = spec.get('wait_for') or {}
         if not isinstance(wait_for, dict) or not all(isinstance(v, int) and v >= 0 for v in wait_for.values()):
             raise StackError(f'{path}: node {name}: wait_for must map topics to subscriber counts')
+        wait_ready = spec.get('wait_ready', False)
+        if not isinstance(wait_ready, bool):
+            raise StackError(f'{path}: node {name}: wait_ready must be true or false, not {wait_ready!r}')
         nodes.append(NodeSpec(name=name, executable=exe,
                               params_file=(_resolve(spec['params_file'], path.parent) if spec.get('params_file')
                                            else None),
@@ -221,7 +251,8 @@ def load_stack(path: Path) -> StackConfig:
                               remappings=dict(spec.get('remappings') or {}), on_exit=on_exit,
                               extra_args=[str(a) for a in spec.get('args') or []], wait_for=dict(wait_for),
                               namespace=_join(stack_ns, _namespace(spec.get('namespace', ''),
-                                                                   f'{path}: node {name}: namespace'))))
+                                                                   f'{path}: node {name}: namespace')),
+                              wait_ready=wait_ready))
     record = data.get('record') or {}
     return StackConfig(nodes=nodes, max_restarts=int(data.get('max_restarts', 3)),
                        record_topics=list(record.get('topics') or []), stop_delay=float(data.get('stop_delay', 1.0)),
@@ -270,6 +301,61 @@ def apply_settings(config: StackConfig, settings: list[str]) -> None:
         except yaml.YAMLError as exc:
             raise StackError(f'--set {text!r}: the value is not YAML: {exc}') from None
         nodes[node].parameters[param] = _number(parsed)
+
+
+def sensor_presets() -> dict[str, Path]:
+    """The sensor presets of the package's ``config/sensors/`` (first of each name), by name."""
+    from sonar_tracking.resources import config_dirs
+    found: dict[str, Path] = {}
+    for d in config_dirs():
+        for p in sorted((d / 'sensors').glob('*.yaml')) if (d / 'sensors').is_dir() else ():
+            found.setdefault(p.stem, p)
+    return found
+
+
+def _is_preset(path: Path) -> bool:
+    from sonar_tracking.resources import config_dirs
+    folders = {(d / 'sensors').resolve() for d in config_dirs() if (d / 'sensors').is_dir()}
+    return path.resolve().parent in folders
+
+
+def apply_preset(config: StackConfig, preset: str) -> Path:
+    """Give every node whose parameter file is a sensor preset of the package the preset ``preset``
+    instead: a name of ``config/sensors/`` or a path to a preset file. Returns the file."""
+    known = sensor_presets()
+    path = known.get(preset[:-5] if preset.endswith('.yaml') else preset)
+    if path is None:
+        path = Path(preset)
+        if not (path.suffix in ('.yaml', '.yml') and path.is_file()):
+            raise StackError(f'--preset {preset}: no such sensor preset; the package has {", ".join(known) or "none"}, '
+                             'or give the path of a preset file')
+    chosen = [spec for spec in config.nodes if spec.params_file is not None and _is_preset(spec.params_file)]
+    if not chosen:
+        raise StackError(f'--preset {preset}: no node of this stack reads a sensor preset (a file of config/sensors/); '
+                         'set params_file in the stack file instead')
+    for spec in chosen:
+        spec.params_file = path
+    return path
+
+
+def add_replay(config: StackConfig, args: str) -> NodeSpec:
+    """Add ``bag_replay ARGS`` as the stack's last node: it starts once every node takes input
+    (``wait_ready``), waits for the stack's readers of :data:`REPLAY_WAIT`, and its end stops the stack."""
+    if config.namespace != '/':
+        raise StackError(f'--replay: the stack runs in {config.namespace}, but a bag replays its topics under '
+                         'their recorded, absolute names (/sonar/sector): run it in the root namespace')
+    argv = shlex.split(args)
+    if not argv:
+        raise StackError('--replay needs a bag: --replay "BAG [bag_replay options]"')
+    extra = argv if '--wait-for' in argv else [*argv, '--wait-for', *REPLAY_WAIT]
+    spec = NodeSpec(name='bag_replay', executable='bag_replay', on_exit='stop', extra_args=extra, wait_ready=True)
+    config.nodes.append(spec)
+    return spec
+
+
+def node_name(spec: NodeSpec) -> str:
+    """The fully qualified name of the node a child runs (its executable's name, or ``__node`` remapped)."""
+    return _join(spec.namespace, str(spec.remappings.get('__node', spec.executable)))
 
 
 def move(config: StackConfig, namespace: str) -> None:
@@ -345,22 +431,68 @@ class Child:
 
 
 class _GraphProbe:
-    """A small rclpy node of the stack's own, to count subscribers for ``wait_for``."""
+    """The stack's own rclpy node (``sonar_stack`` in the stack's namespace): counts subscribers for
+    ``wait_for``, follows the status of the stack's nodes and publishes the stack's own on
+    ``sonar_stack/status`` (module docstring), spun by a thread of its own."""
 
-    def __init__(self) -> None:
+    def __init__(self, namespace: str, watched: list[str], say) -> None:
         from sonar_tracking.ros.runtime import configure_dds
         configure_dds()
         import rclpy
         from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
         from rclpy.signals import SignalHandlerOptions
+
+        from sonar_tracking.ros.status import NodeStatus, StatusWatch
+        self.say = say
         self.context = Context()
         rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)
-        self.node = rclpy.create_node('sonar_stack', context=self.context)
+        self.node = rclpy.create_node('sonar_stack', namespace=namespace, context=self.context)
+        self.watch = StatusWatch(self.node, watched)
+        self.status = NodeStatus(self.node)
+        self._shown: str | None = None
+        self._publish()
+        self.node.create_timer(0.1, self._publish)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self._spin, name='sonar_stack_probe', daemon=True)
+        self.thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self.executor.spin()
+        except Exception:  # noqa: BLE001 - the context was shut down under it at the end
+            pass
+
+    def _publish(self) -> None:
+        from sonar_tracking.ros.status import LEARNING, STARTING
+        state = self.watch.state()
+        records = [r for r in self.watch.records.values() if r is not None]
+        left = max([float(r.get('seconds_left', 0.0)) for r in records if r['state'] == LEARNING], default=0.0)
+        nodes = {name: (st or STARTING) for name, st in self.watch.states().items()}
+        detail = self.describe(nodes)
+        self.status.set(state, left, detail, nodes=nodes)
+        if state != self._shown:
+            self._shown = state
+            self.say(f'stack {state}: {detail}')
+
+    def describe(self, nodes: dict | None = None) -> str:
+        """The state of each node of the stack, in words."""
+        from sonar_tracking.ros.status import STARTING
+        nodes = {name: (st or STARTING) for name, st in self.watch.states().items()} if nodes is None else nodes
+        return ', '.join(f'{name.rsplit("/", 1)[-1]} {st}' for name, st in sorted(nodes.items())) or 'no nodes'
+
+    def takes_input(self) -> bool:
+        """Whether no node of the stack says ``starting`` (every one takes input)."""
+        from sonar_tracking.ros.status import STARTING
+        return self.watch.state() != STARTING
 
     def ready(self, wait_for: dict) -> bool:
         return all(self.node.count_subscribers(topic) >= n for topic, n in wait_for.items())
 
     def close(self) -> None:
+        self.executor.shutdown(timeout_sec=1.0)
+        self.thread.join(timeout=2.0)
         self.node.destroy_node()
         self.context.try_shutdown()
 
@@ -389,23 +521,59 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0,
                 "package's topics in the root namespace only): nobody waits for it there, and the bag may miss "
                 'their first messages')
         for spec in specs:
-            if spec.wait_for:
+            if spec.wait_for or spec.wait_ready:
                 for topic in topics:
                     if topic not in late:
                         waits[spec.name][topic] = waits[spec.name].get(topic, 0) + 1
         specs.insert(0, recorder)
         waits[recorder.name] = {}
+    viewer = interrupted = None
     if view is not None:  # waited topics the view listens to get one more listener
         from sonar_tracking.cli.view import TOPICS
         listens = {resolve_name(t, config.namespace) for t in TOPICS}
         waits = {name: {t: n + (t in listens) for t, n in w.items()} for name, w in waits.items()}
-        specs.insert(0, NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore',
-                                 extra_args=shlex.split(view), namespace=config.namespace))
-        waits['sonar_view'] = {}
+        interrupted = threading.Event()  # Ctrl-C or SIGTERM, as against the pipeline ending by itself
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda *a: (interrupted.set(), stop.set()))
+        # Started here, outside the pipeline's children, so that it outlives them.
+        # Every record message of the whole run (reliable, keep-last: never blocks a writer); ARGS may override.
+        viewer = Child(NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore',
+                                extra_args=['--always', '--qos', 'reliable', *shlex.split(view)],
+                                namespace=config.namespace), lock)
+        say(f'started sonar_view (pid {viewer.proc.pid})')
     for spec in specs:
         if spec.params_file is not None:
             say(f'{spec.name} reads parameters from {spec.params_file}')
-    return _run(config, specs, waits, grace, say, lock, stop)
+    watched = [node_name(spec) for spec in specs if spec.executable in STATUS_EXECUTABLES]
+    if viewer is None:
+        return _run(config, specs, waits, grace, say, lock, stop, watched)
+    status = None
+    try:
+        status = _run(config, specs, waits, grace, say, lock, stop, watched)
+    finally:
+        _keep_view(viewer, interrupted, say, grace, linger=status is not None)
+    return status
+
+
+def _keep_view(viewer: Child, interrupted: threading.Event, say, grace: float, linger: bool) -> None:
+    """After the pipeline stopped: unless stopped by a signal (or ``linger`` is False), keep the view
+    serving the run until Ctrl-C, SIGTERM or its own exit; then stop it."""
+    if linger and not interrupted.is_set() and viewer.proc.poll() is None:
+        say('the pipeline has stopped; sonar_view keeps the whole run for the browser (its address is the '
+            '"view:" line above): Ctrl-C ends it')
+        while not interrupted.wait(0.2) and viewer.proc.poll() is None:
+            pass
+    code = viewer.proc.poll()
+    if code is not None:
+        say(f'sonar_view exited with status {code}')
+        return
+    viewer.signal(signal.SIGINT)
+    try:
+        viewer.proc.wait(grace)
+    except subprocess.TimeoutExpired:
+        say(f'sonar_view did not stop within {grace:g} s: killed')
+        viewer.signal(signal.SIGKILL)
+        viewer.proc.wait()
 
 
 def _late_topics(topics: list[str], namespace: str) -> list[str]:
@@ -418,11 +586,17 @@ def _late_topics(topics: list[str], namespace: str) -> list[str]:
 
 
 def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, grace: float, say, lock: threading.Lock,
-         stop: threading.Event) -> int:
-    children = []
-    graph = _GraphProbe() if any(waits.values()) else None
+         stop: threading.Event, watched: list[str] | None = None) -> int:
+    children: list[Child] = []
+    graph = _GraphProbe(config.namespace, watched or [], say)
+    deferred: list[NodeSpec] = []      # wait_ready: started by the watch loop once every node takes input
+    status = 0
     try:
         for spec in specs:
+            if spec.wait_ready:
+                say(f'{spec.name} waits for every node of the stack to take input')
+                deferred.append(spec)
+                continue
             wait_for = waits[spec.name]
             if wait_for:
                 say(f'{spec.name} waits for subscribers: ' + ', '.join(f'{t} >= {n}' for t, n in wait_for.items()))
@@ -432,13 +606,36 @@ def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, grace: float, 
                     break
             children.append(Child(spec, lock))
             say(f'started {spec.name} (pid {children[-1].proc.pid})')
+        status = _watch(config, children, deferred, waits, graph, say, lock, stop)
     finally:
-        if graph is not None:
-            graph.close()
+        say('stopping')
+        for child in children:
+            child.signal(signal.SIGINT)
+        deadline = time.monotonic() + grace
+        for child in children:
+            try:
+                child.proc.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                say(f'{child.spec.name} did not stop within {grace:g} s: killed')
+                child.signal(signal.SIGKILL)
+                child.proc.wait()
+        graph.close()
+    return status
+
+
+def _watch(config: StackConfig, children: list[Child], deferred: list[NodeSpec], waits: dict, graph: _GraphProbe,
+           say, lock: threading.Lock, stop: threading.Event) -> int:
+    """Start the deferred children once every node takes input, and apply the exit policies until
+    the stack stops; returns the stack's exit status."""
     status = 0
     gone: set[str] = set()
     while not stop.is_set():
         time.sleep(0.1)
+        if deferred and graph.takes_input():
+            for spec in [s for s in deferred if graph.ready(waits[s.name])]:
+                deferred.remove(spec)
+                children.append(Child(spec, lock))
+                say(f'started {spec.name} (pid {children[-1].proc.pid}): every node takes input ({graph.describe()})')
         for child in children:
             code = child.proc.poll()
             name = child.spec.name
@@ -459,24 +656,17 @@ def _run(config: StackConfig, specs: list[NodeSpec], waits: dict, grace: float, 
                     stop.wait(config.stop_delay)  # let the others finish what is queued
                 stop.set()
                 break
-    say('stopping')
-    for child in children:
-        child.signal(signal.SIGINT)
-    deadline = time.monotonic() + grace
-    for child in children:
-        try:
-            child.proc.wait(max(0.0, deadline - time.monotonic()))
-        except subprocess.TimeoutExpired:
-            say(f'{child.spec.name} did not stop within {grace:g} s: killed')
-            child.signal(signal.SIGKILL)
-            child.proc.wait()
     return status
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``sonar_stack``."""
     parser = argparse.ArgumentParser(prog='sonar_stack', description=__doc__.split('\n\n')[0], allow_abbrev=False,
-                                     epilog='e.g. sonar_stack harbour --namespace /auv1 --set seaking_sim.duration=30')
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog='e.g. sonar_stack harbour --namespace /auv1 --set seaking_sim.duration=30\n'
+                                            '     sonar_stack recording --preset aris_didson --record out/run\n'
+                                            '     sonar_stack recording_active --preset micron_seaking '
+                                            '--replay rec_sectors --record out/run')
     parser.add_argument('stack', nargs='?',
                         help='stack name or file: harbour, fls, stack_harbour.yaml, path/to/my.yaml')
     parser.add_argument('--config', help='stack file, or the name of one in the package config (as STACK)')
@@ -486,6 +676,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--record', type=Path, default=None, metavar='DIR', help='also record a bag into DIR')
     parser.add_argument('--view', nargs='?', const='', default=None, metavar='ARGS',
                         help='also run sonar_view, the browser view (ARGS: its options, quoted)')
+    parser.add_argument('--preset', metavar='SENSOR',
+                        help='sensor preset for the nodes that read one: config/sensors/SENSOR.yaml ('
+                             + ', '.join(sensor_presets()) + ') or a preset file, e.g. sonar_stack recording '
+                             '--preset aris_didson')
+    parser.add_argument('--replay', metavar='"BAG [OPTIONS]"',
+                        help='replay the bag into the stack once every node takes input (bag_replay BAG OPTIONS, '
+                             'quoted); the stack stops when the replay ends')
     parser.add_argument('--dry-run', action='store_true', help="print the children's command lines and exit")
     parser.add_argument('--list', action='store_true', help='list the stack files shipped with the package')
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -507,9 +704,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         path = find_stack(args.stack or args.config)
         config = load_stack(path)
+        if args.preset is not None:
+            apply_preset(config, args.preset)
         apply_settings(config, args.set)
         if namespace is not None:
             move(config, namespace)
+        if args.replay is not None:
+            add_replay(config, args.replay)
         check_params_files(config)
     except StackError as exc:
         print(f'error: {exc}', file=sys.stderr)

@@ -417,3 +417,52 @@ def test_namespaced_package_topics_are_left_out_of_the_recorder_wait():
     topics = ['/a/tracks', '/a/sonar/sector', '/a/fls/image_info', '/clock', '/tracks']
     assert _late_topics(topics, '/a') == ['/a/tracks', '/a/sonar/sector']
     assert _late_topics(topics, '/') == []
+
+
+def test_preset_gives_every_node_reading_a_sensor_preset_another(tmp_path, capsys):
+    from sonar_tracking.cli.sonar_stack import main, sensor_presets
+
+    def children(*args):
+        assert main([*args, '--dry-run']) == 0
+        return [line for line in capsys.readouterr().out.splitlines() if not line.startswith('#')]
+    aris = sensor_presets()['aris_didson']
+    lines = children('recording', '--preset', 'aris_didson')
+    assert len(lines) == 2 and all(f'--params-file {aris} ' in line + ' ' for line in lines), lines
+    own = tmp_path / 'my_sonar.yaml'
+    own.write_text(aris.read_text())
+    lines = children('recording_active', '--preset', str(own))
+    assert [line.split(' -m ')[1].split()[0] for line in lines] == ['sonar_tracking.nodes.imm_ipda_tracker',
+                                                                    'sonar_tracking.nodes.active_detector']
+    assert all(f'--params-file {own}' in line for line in lines), lines
+    assert main(['recording', '--preset', 'sonar9000', '--dry-run']) == 2
+    assert 'no such sensor preset; the package has aris_didson, gemini_720, micron_seaking' in capsys.readouterr().err
+    assert main(['harbour', '--preset', 'ping360', '--dry-run']) == 2
+    assert 'no node of this stack reads a sensor preset' in capsys.readouterr().err
+
+
+def test_replay_is_the_last_child_and_waits_for_the_sector_readers(capsys):
+    from sonar_tracking.cli.sonar_stack import main
+    assert main(['recording_active', '--replay', 'rec_sectors --rate 2', '--dry-run']) == 0
+    last = capsys.readouterr().out.splitlines()[-1]
+    assert last.split(' -m ')[1] == ('sonar_tracking.cli.bag_replay rec_sectors --rate 2 --wait-for /sonar/sector '
+                                     '/sonar/sector_info --ros-args')
+    assert main(['recording_active', '--replay', 'rec_sectors', '--namespace', '/a', '--dry-run']) == 2
+    assert 'run it in the root namespace' in capsys.readouterr().err
+
+
+def test_the_nodes_with_a_status_are_the_processing_nodes():
+    """The stack waits for the state of exactly the nodes that publish one, under their executables' names."""
+    import importlib
+    import inspect
+
+    from sonar_tracking.cli.sonar_stack import STATUS_EXECUTABLES, _entry_points
+    from sonar_tracking.ros import SonarNode
+    found = set()
+    for exe, module in _entry_points().items():
+        if module.startswith('sonar_tracking.nodes.'):
+            classes = [c for c in vars(importlib.import_module(module)).values()
+                       if inspect.isclass(c) and issubclass(c, SonarNode) and c.__module__ == module]
+            if classes:
+                assert f"super().__init__('{exe}'" in inspect.getsource(classes[0]), exe
+                found.add(exe)
+    assert found == STATUS_EXECUTABLES

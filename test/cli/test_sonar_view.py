@@ -1,51 +1,28 @@
-"""sonar_view: messages -> Rerun entities in the right place, bags, no extra -> `make view`, and a
-headless Chromium loading the view of a running stack (the screenshot is kept in out/)."""
+"""sonar_view's scene: messages -> Rerun entities in the right place, on a timeline of seconds since the
+start; a layout with the panels of what arrived; the polar picture, grid, scale bar, legend and per-track
+details; sonar images bounded in time; bags; no extra -> `make view`. The browser tests are in
+test_view_browser.py, the servers' ports and addresses in test_view_serve.py."""
 from __future__ import annotations
 
-import base64
-import json
 import math
-import os
-import re
-import shutil
-import signal
 import socket
 import subprocess
 import sys
-import tempfile
-import time
-from collections import defaultdict
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import sonar_tracking.msgs as ma
-from sonar_tracking import process
 from sonar_tracking.core.sector import SectorGeometry
 
-OUT = Path(__file__).resolve().parents[2] / 'out' / 'test_sonar_view'
 SONAR = (100.0, 50.0, math.pi / 2)  # the sonar looks along +y of the world
+rr = pytest.importorskip('rerun')  # the view extra (`make view-deps` installs it)
 
 
 def rrd_columns(path: Path) -> dict[str, dict[str, list]]:
-    """entity -> component column -> [(stamp_ns, value), ...] in stamp order, from an .rrd file."""
-    import pyarrow as pa
-    from rerun.chunk import RrdReader
-    out: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
-    for chunk in RrdReader(path).stream():
-        batch = chunk.to_record_batch()
-        names = batch.schema.names
-        stamps = (batch.column('stamp').cast(pa.int64()).to_pylist() if 'stamp' in names
-                  else [None] * batch.num_rows)
-        for name in names:
-            if name in ('rerun.controls.RowId', 'log_time', 'stamp'):
-                continue
-            out[chunk.entity_path][name].extend(zip(stamps, batch.column(name).to_pylist()))
-    for cols in out.values():
-        for rows in cols.values():
-            rows.sort(key=lambda r: -1 if r[0] is None else r[0])
-    return out
+    from sonar_tracking.cli.view.browser import rrd_columns as columns
+    return columns(path)
 
 
 def geometry() -> SectorGeometry:
@@ -54,7 +31,7 @@ def geometry() -> SectorGeometry:
 
 
 def scan_messages(types, k: int) -> list[tuple[str, object]]:
-    """One scan of every topic the view reads, stamped k seconds; the sonar sees one bright cell at
+    """One scan of every topic the view reads, stamped 10 + k seconds; the sonar sees one bright cell at
     range 60 m, bearing 0 (world (100, 110)); track 7 is confirmed at (100 + k, 110), track 8 tentative."""
     stamp = (10 + k) * 10**9
     amp = np.full((100, 61), 0.1, np.float32)
@@ -65,6 +42,7 @@ def scan_messages(types, k: int) -> list[tuple[str, object]]:
     tracks = np.zeros(2, ma.TRACK_DTYPE)
     tracks['track_id'], tracks['confirmed'] = [7, 8], [1, 0]
     tracks['x'], tracks['y'], tracks['vx'] = [100.0 + k, 60.0], [110.0, 60.0], [1.0, 0.0]
+    tracks['existence'], tracks['mode_cv'], tracks['mode_ccw'], tracks['mode_cw'] = [0.9, 0.3], 0.6, 0.3, 0.1
     tracks['cov_xx'], tracks['cov_yy'] = 4.0, 1.0
     truth = np.zeros(1, ma.TRUTH_DTYPE)
     truth['target_id'], truth['x'], truth['y'] = 1, 100.0 + k, 111.0
@@ -72,6 +50,7 @@ def scan_messages(types, k: int) -> list[tuple[str, object]]:
     regions['region_id'], regions['x'], regions['y'] = 3, 95.0, 105.0
     gpf = np.zeros(1, ma.GPF_TRACK_DTYPE)
     gpf['track_id'], gpf['confirmed'], gpf['x'], gpf['y'], gpf['cov_xx'], gpf['cov_yy'] = 2, 1, 96.0, 104.0, 1.0, 1.0
+    gpf['fusion'] = 1
     from sonar_tracking.core.fls.grid import ImageGrid
     from sonar_tracking.msgs.map_info import grid_to_map_info
     fls = np.full((20, 30), 0.1, np.float32)
@@ -95,6 +74,10 @@ def scan_messages(types, k: int) -> list[tuple[str, object]]:
     ]
 
 
+FLS_TOPICS = {'sonar/sector', 'sonar/sector_info', 'sonar/truth', 'platform/odometry', 'fls/image_info',
+              'fls/image', 'fls/regions', 'gpf/tracks'}
+
+
 def decode_image(blob) -> np.ndarray:
     import cv2
     return cv2.imdecode(np.frombuffer(bytes(blob), np.uint8), cv2.IMREAD_GRAYSCALE)
@@ -113,28 +96,36 @@ def brightest_in_map(cols: dict, image_col: str) -> tuple[float, float]:
     return tuple(t + np.array([c * p[0] - s * p[1], s * p[0] + c * p[1]]))
 
 
-def test_scene_puts_every_topic_in_place_on_the_map(tmp_path, rosbags_types):
-    import rerun as rr
-
+def log_scans(path: Path, types, scans: int, topics: set[str] | None = None, **kw):
+    """Log ``scans`` scans (only ``topics`` if given) to an .rrd file; returns the scene logger."""
     from sonar_tracking.cli.view.scene import SceneLogger
     rec = rr.RecordingStream('test_scene')
-    path = tmp_path / 'scene.rrd'
     rec.set_sinks(rr.FileSink(str(path)))
-    scene = SceneLogger(rec, fan_px=200, fan_period=0.0)
-    for k in range(3):
-        for topic, msg in scan_messages(rosbags_types, k):
-            assert scene.handle(topic, msg), (topic, scene.last_error)
+    scene = SceneLogger(rec, fan_px=200, fan_period=0.0, **kw)
+    for k in range(scans):
+        for topic, msg in scan_messages(types, k):
+            if topics is None or topic in topics:
+                assert scene.handle(topic, msg), (topic, scene.last_error)
     scene.finish()
     rec.flush()
     rec.disconnect()
+    return scene
+
+
+def test_scene_puts_every_topic_in_place_on_the_map(tmp_path, rosbags_types):
+    path = tmp_path / 'scene.rrd'
+    scene = log_scans(path, rosbags_types, 3)
     assert scene.errors == {}
     cols = rrd_columns(path)
-    # One row per message on the map and the plots, at the message stamps.
+    # One row per message on the map and the plots, at seconds since the first stamp (10 s): 0, 1, 2 s.
     for entity in ('/map/detections', '/map/tracks/confirmed/points', '/map/tracks/tentative/points',
                    '/map/truth/points', '/map/regions', '/map/gpf/confirmed/points'):
-        assert [s for s, _ in cols[entity]['Points2D:positions']] == [(10 + k) * 10**9 for k in range(3)], entity
+        assert [s for s, _ in cols[entity]['Points2D:positions']] == [k * 10**9 for k in range(3)], entity
     assert [v[0] for _, v in cols['/plots/threshold']['Scalars:scalars']] == pytest.approx([3.0, 3.1, 3.2])
     assert [v for _, v in cols['/plots/confirmed/imm_ipda']['Scalars:scalars']] == [[1.0]] * 3
+    # The run's first stamp is a property of the recording.
+    assert cols['/__properties/run']['first_stamp_ns'][-1][1] == [10 * 10**9]
+    assert cols['/__properties/run']['first_stamp'][-1][1] == ['1970-01-01T00:00:10.000000000Z']
     # Map coordinates are (x, -y): x to the right, y up.
     assert cols['/map/detections']['Points2D:positions'][-1][1] == [[100.0, -110.0], [90.0, -80.0]]
     assert cols['/map/tracks/confirmed/points']['Points2D:labels'][-1][1] == ['T7']
@@ -157,9 +148,105 @@ def test_scene_puts_every_topic_in_place_on_the_map(tmp_path, rosbags_types):
     assert (u, v) == pytest.approx((105.5, -92.5), abs=0.8)
 
 
-def test_bad_messages_are_dropped_and_counted(tmp_path, rosbags_types):
-    import rerun as rr
+def test_selected_tracks_show_their_details_and_region_labels_leave_track_ids_visible(tmp_path, rosbags_types):
+    path = tmp_path / 'details.rrd'
+    log_scans(path, rosbags_types, 2)
+    cols = rrd_columns(path)
+    confirmed = cols['/map/tracks/confirmed/points']
+    assert confirmed['track_id'][-1][1] == [7]
+    assert confirmed['existence'][-1][1] == pytest.approx([0.9])
+    assert [confirmed[m][-1][1][0] for m in ('mode_cv', 'mode_ccw', 'mode_cw')] == pytest.approx([0.6, 0.3, 0.1])
+    assert confirmed['speed_m_s'][-1][1] == pytest.approx([1.0])
+    assert cols['/map/tracks/tentative/points']['existence'][-1][1] == pytest.approx([0.3])
+    gpf = cols['/map/gpf/confirmed/points']
+    assert gpf['fusion'][-1][1] == ['WF (weighted sum)'] and gpf['Points2D:labels'][-1][1] == ['T2']
+    # Regions keep their id for hover and selection but draw no label over the track ids.
+    regions = cols['/map/regions']
+    assert regions['Points2D:show_labels'][-1][1] == [False] and regions['region_id'][-1][1] == [3]
+    assert confirmed['Points2D:show_labels'][-1][1] == [True]
 
+
+def test_the_layout_has_panels_only_for_what_arrived(tmp_path, rosbags_types):
+    from sonar_tracking.cli.view.browser import panel_names
+    from sonar_tracking.cli.view.scene import PANELS
+    log_scans(tmp_path / 'fls.rrd', rosbags_types, 2, topics=FLS_TOPICS)
+    fls = set(panel_names(tmp_path / 'fls.rrd'))
+    assert fls == {PANELS[k] for k in ('map', 'legend', 'polar', 'confirmed', 'counts')}
+    log_scans(tmp_path / 'all.rrd', rosbags_types, 2)
+    assert set(panel_names(tmp_path / 'all.rrd')) == set(PANELS.values())
+    # The legend names the colours of what is present, in the colours drawn.
+    cols = rrd_columns(tmp_path / 'fls.rrd')
+    labels = cols['/legend']['Points2D:labels'][-1][1]
+    assert any('GPF track, confirmed' in t for t in labels) and any('FLS region' in t for t in labels)
+    assert not any('IMM-IPDA' in t or t == 'detection' for t in labels)
+
+
+def test_the_map_has_a_grid_and_a_scale_bar(tmp_path, rosbags_types):
+    from sonar_tracking.cli.view.scene import grid_spacing
+    assert [grid_spacing(e) for e in (8.0, 110.0, 1700.0, 0.3)] == pytest.approx([1.0, 20.0, 500.0, 0.05])
+    log_scans(tmp_path / 'grid.rrd', rosbags_types, 1)
+    cols = rrd_columns(tmp_path / 'grid.rrd')
+    strips = [np.array(s) for s in cols['/map/grid']['LineStrips2D:strips'][-1][1]]
+    xs = sorted({round(float(s[0, 0]), 6) for s in strips if s[0, 0] == s[1, 0]})  # vertical lines
+    step = np.diff(xs)
+    assert len(xs) >= 3 and np.allclose(step, step[0])
+    bar = np.array(cols['/map/scale']['LineStrips2D:strips'][-1][1][0])
+    assert np.ptp(bar[:, 0]) == pytest.approx(step[0])
+    assert cols['/map/scale']['LineStrips2D:labels'][-1][1] == [f'{step[0]:g} m (grid {step[0]:g} m)']
+
+
+def test_the_polar_picture_puts_sectors_side_by_side_port_left_far_range_up():
+    from sonar_tracking.cli.view.scene import PolarScan
+    scan = PolarScan()
+    # A scanning head: sectors of 10 beams of 1 deg, from -20 deg up to +19 deg.
+    step = math.radians(1.0)
+    for first in range(-20, 20, 10):
+        geom = SectorGeometry(angle_min=math.radians(first), angle_increment=step, n_beams=10, range_min=1.0,
+                              range_max=50.0, n_bins=50)
+        values = np.full((50, 10), 1.0, np.float32)
+        if first == 10:
+            values[40, 5] = 1000.0  # range 41 m, bearing +15 deg
+        assert scan.paint(values, geom)  # a new picture, then one that grows
+    assert scan.image.shape == (50, 40)
+    assert not scan.paint(values, geom)  # the same bearings again: same picture
+    row, col = np.unravel_index(np.nanargmax(scan.image), scan.image.shape)
+    assert row == 49 - 40  # far range on top
+    assert math.degrees(scan.top - col * scan.step) == pytest.approx(15.0)  # port (positive bearing) left
+    assert col == 4
+    # Few beams are stretched to a wide picture; the ticks label its edges in those pixels.
+    assert scan.stretch == 2 and scan.picture(30.0).shape == (50, 80)
+    positions, labels = scan.ticks()
+    assert labels[:3] == ['+19.0 deg', '+0.0 deg', '-20.0 deg'] and labels[3] == '50 m'
+    assert positions[2][0] == pytest.approx(79.0)
+    # A new range scale starts the picture anew; more beams than MAX_COLS are thinned.
+    wide = SectorGeometry(angle_min=-1.0, angle_increment=2.0 / 2999, n_beams=3000, range_min=1.0, range_max=9.0,
+                          n_bins=2000)
+    assert scan.paint(np.ones((2000, 3000), np.float32), wide)
+    assert scan.image.shape == (500, 1000)
+
+
+def test_sonar_images_at_most_once_per_period_of_stamp_and_clock_time(tmp_path, rosbags_types):
+    from sonar_tracking.cli.view.scene import SceneLogger
+    rec = rr.RecordingStream('test_period')
+    rec.set_sinks(rr.FileSink(str(tmp_path / 'period.rrd')))
+    now = [100.0]
+    scene = SceneLogger(rec, fan_px=64, fan_period=0.5, clock=lambda: now[0])
+    sector = [(t, m) for k in range(10) for t, m in scan_messages(rosbags_types, k)
+              if t in ('sonar/sector', 'sonar/sector_info', 'platform/odometry')]
+    for topic, msg in sector:  # ten sectors 1 s of stamp time apart, all at one instant of the clock
+        assert scene.handle(topic, msg)
+    assert scene.images_logged == 1
+    assert not scene.flush_images()  # the period has not passed on the clock
+    now[0] += 0.6
+    assert scene.flush_images() and scene.images_logged == 2  # the latest sector's picture
+    assert not scene.flush_images()  # nothing new
+    rec.disconnect()
+    cols = rrd_columns(tmp_path / 'period.rrd')
+    assert [t for t, _ in cols['/map/fan']['EncodedImage:blob']] == [0, 9 * 10**9]
+    assert [t for t, _ in cols['/sector/polar']['EncodedImage:blob']] == [0, 9 * 10**9]
+
+
+def test_bad_messages_are_dropped_and_counted(tmp_path, rosbags_types):
     from sonar_tracking.cli.view.scene import SceneLogger
     rec = rr.RecordingStream('test_bad')
     rec.set_sinks(rr.FileSink(str(tmp_path / 'bad.rrd')))
@@ -227,174 +314,3 @@ def test_viewer_connected_sees_established_connections_to_its_port():
         client.close()
         conn.close()
         assert not viewer_connected(port)
-
-
-# -- the browser ------------------------------------------------------------------------------------
-
-class Chromium:
-    """Headless Chromium driven over the DevTools protocol on a pipe (``--remote-debugging-pipe``)."""
-
-    def __init__(self, width: int = 1600, height: int = 1000) -> None:
-        to_child, self._w = os.pipe()
-        self._r, from_child = os.pipe()
-        self.profile = tempfile.mkdtemp(prefix='sonar_view_chromium_')
-        args = [shutil.which('chromium'), '--headless=new', '--remote-debugging-pipe', '--no-sandbox',
-                '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--no-first-run',
-                '--disable-background-networking', f'--user-data-dir={self.profile}',
-                f'--window-size={width},{height}', 'about:blank']
-
-        def fds() -> None:
-            os.dup2(to_child, 3)
-            os.dup2(from_child, 4)
-        self.proc = subprocess.Popen(args, pass_fds=(3, 4), preexec_fn=process.child_dies_with_parent(then=fds),
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-        os.close(to_child)
-        os.close(from_child)
-        self._id, self._buf, self.events = 0, b'', []
-        target = self.call('Target.createTarget', url='about:blank')['targetId']
-        self.session = self.call('Target.attachToTarget', targetId=target, flatten=True)['sessionId']
-        self.size = (width, height)
-
-    def call(self, method: str, session: str | None = None, **params) -> dict:
-        self._id += 1
-        msg = {'id': self._id, 'method': method, 'params': params}
-        if session:
-            msg['sessionId'] = session
-        os.write(self._w, json.dumps(msg).encode() + b'\0')
-        while True:
-            while b'\0' not in self._buf:
-                chunk = os.read(self._r, 1 << 20)
-                if not chunk:
-                    raise RuntimeError('chromium closed the DevTools pipe')
-                self._buf += chunk
-            raw, self._buf = self._buf.split(b'\0', 1)
-            reply = json.loads(raw)
-            if reply.get('id') == self._id:
-                if 'error' in reply:
-                    raise RuntimeError(f'{method}: {reply["error"]}')
-                return reply['result']
-            self.events.append(reply)
-
-    def page(self, method: str, **params) -> dict:
-        return self.call(method, self.session, **params)
-
-    def screenshot(self) -> bytes:
-        return base64.b64decode(self.page('Page.captureScreenshot', format='png')['data'])
-
-    def received_bytes(self, url_part: str) -> int:
-        """Bytes the page received on requests whose URL contains ``url_part`` (DevTools Network events)."""
-        ids = {e['params']['requestId'] for e in self.events
-               if e.get('method') == 'Network.requestWillBeSent' and url_part in e['params']['request']['url']}
-        return sum(e['params']['dataLength'] for e in self.events
-                   if e.get('method') == 'Network.dataReceived' and e['params']['requestId'] in ids)
-
-    def close(self) -> None:
-        self.proc.terminate()
-        try:
-            self.proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self.proc.kill()
-            self.proc.wait()
-        os.close(self._w)
-        os.close(self._r)
-        shutil.rmtree(self.profile, ignore_errors=True)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(('127.0.0.1', 0))
-        return s.getsockname()[1]
-
-
-def colour_pixels(png: bytes, rgb: tuple[int, int, int], box: tuple[int, int, int, int], tol: int = 40) -> int:
-    """Pixels of ``png`` within ``tol`` of colour ``rgb`` inside ``box = (x0, y0, x1, y1)``."""
-    import cv2
-    img = cv2.imdecode(np.frombuffer(png, np.uint8), cv2.IMREAD_COLOR)[box[1]:box[3], box[0]:box[2], ::-1]
-    return int((np.abs(img.astype(int) - np.array(rgb)).max(axis=2) <= tol).sum())
-
-
-MAP = (0, 40, 960, 960)  # the map view in a 1600 x 1000 page
-
-STACK = '''
-on_exit: stop
-nodes:
-  imm_ipda_tracker: {params_file: package:imm_ipda.yaml}
-  active_detector:
-    params_file: package:active_detector.yaml
-    parameters: {esc.density_source: best_track, esc.desired_clutter_density: 7.52e-5}
-  seaking_sim:
-    params_file: package:sim_harbour.yaml
-    parameters: {rate: 4.0, duration: %d.0, wait_for_subscribers: 1}
-    wait_for: {/sonar/sector: 1, /sonar/sector_info: 1, /detections: 1}
-'''
-
-
-@pytest.mark.ros
-@pytest.mark.slow
-def test_the_browser_shows_a_running_stack(tmp_path):
-    if shutil.which('chromium') is None:
-        pytest.skip('Debian\'s chromium is not installed (`make view-deps` installs it)')
-    import rerun  # noqa: F401  (the extra must be installed: `make view-deps`)
-    scans = 40
-    (tmp_path / 'stack.yaml').write_text(STACK % scans)
-    grpc, web, rrd = free_port(), free_port(), tmp_path / 'view.rrd'
-    OUT.mkdir(parents=True, exist_ok=True)
-    log = (OUT / 'stack.log').open('w')
-    stack = subprocess.Popen(
-        [sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', '--config', str(tmp_path / 'stack.yaml'),
-         '--view', f'--grpc-port {grpc} --web-port {web} --save {rrd} --qos reliable'],
-        stdout=log, stderr=subprocess.STDOUT, text=True, start_new_session=True,
-        preexec_fn=process.child_dies_with_parent())
-    browser = None
-    try:
-        url = wait_for_line(stack, OUT / 'stack.log', r'\[sonar_view\] view: (\S+)').group(1)
-        browser = Chromium()
-        browser.page('Network.enable')
-        browser.page('Page.enable')
-        browser.page('Emulation.setDeviceMetricsOverride', width=1600, height=1000, deviceScaleFactor=1, mobile=False)
-        browser.page('Page.navigate', url=url)
-        finished = wait_for_line(stack, OUT / 'stack.log', r'finished after (\d+) sectors')
-        assert int(finished.group(1)) == scans
-        # Wait until the page draws the run: the fan (dark pixels), detections (orange) on the map, the
-        # threshold curve (red).
-        deadline, shot, missing = time.monotonic() + 180, b'', ['everything']
-        while missing and time.monotonic() < deadline:
-            shot = browser.screenshot()
-            missing = [what for what, colour, box, n in (
-                ('the fan', (10, 10, 10), MAP, 100_000), ('detections', (255, 160, 0), MAP, 50),
-                ('the threshold curve', (230, 60, 60), (960, 40, 1600, 300), 50))
-                if colour_pixels(shot, colour, box) < n]
-            time.sleep(1.0)
-        (OUT / 'screenshot.png').write_bytes(shot)
-        assert not missing, f'not drawn: {missing} (see {OUT / "screenshot.png"})'
-        received = browser.received_bytes(f':{grpc}/')
-    finally:
-        if stack.poll() is None:
-            os.killpg(stack.pid, signal.SIGINT)
-            stack.wait(30)
-        log.close()
-        if browser is not None:
-            browser.close()
-    # The recording the page streamed: one row per scan of every record topic, the fan at least once.
-    cols = rrd_columns(rrd)
-    for entity, column in (('/map/detections', 'Points2D:positions'), ('/map/truth/points', 'Points2D:positions'),
-                           ('/map/tracks/tentative/points', 'Points2D:positions'),
-                           ('/plots/clutter_density', 'Scalars:scalars')):
-        assert len(cols[entity][column]) == scans, entity
-    assert len(cols['/plots/threshold']['Scalars:scalars']) >= scans  # plus the initial one
-    assert len(cols['/map/fan']['EncodedImage:blob']) >= 1
-    # The page itself received that stream from the view's server: at least half of the file's bytes.
-    assert received > 0.5 * rrd.stat().st_size, (received, rrd.stat().st_size)
-
-
-def wait_for_line(proc: subprocess.Popen, log: Path, pattern: str, timeout: float = 180.0) -> re.Match:
-    """Wait until the stack's log matches ``pattern`` (fails if the stack exits first)."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        m = re.search(pattern, log.read_text())
-        if m:
-            return m
-        if proc.poll() is not None:
-            break
-        time.sleep(0.2)
-    raise AssertionError(f'no {pattern!r} in the stack output:\n{log.read_text()[-3000:]}')

@@ -1,55 +1,98 @@
-"""Pipeline throughput with and without ``sonar_view`` listening (issue: the live browser view).
+"""``sonar_view``: what it costs the pipeline, and how far a browser without GPU falls behind.
 
-The demo's stack (``config/stack_harbour.yaml``: the harbour simulator at full speed,
-``active_detector``, ``imm_ipda_tracker``; 100 scans) runs with ``--record`` into a temporary bag,
-``ROUNDS`` times each: plain, with ``--view`` (no browser connected: the view drops what it takes)
-and with ``--view --always`` (the view logs every message, no browser), in turn so that the load
-of a shared machine falls on all alike, each run in a DDS domain of its own. A run's sample
-is its seconds per scan in steady state: the span between the ``SKIP``-th and the last ``/tracks``
-message as the recorder received them, over the scans between (the first scans include the
-processes settling, and a view without a browser unsubscribing once the pipeline runs). The ratios
-of the medians to the plain one are the view's cost to the pipeline's throughput. Registered only
-where the view extra (Rerun) is installed.
+Pipeline cost (``view.pipeline_*``): the demo's stack (``config/stack_harbour.yaml``: the harbour
+simulator at full speed, ``active_detector``, ``imm_ipda_tracker``; 100 scans) runs with
+``--record`` into a temporary bag, ``ROUNDS`` times each: plain, with ``sonar_view`` listening and
+no browser connected (the view drops what it takes), and with ``sonar_stack --view`` (the view logs
+every message of the run, no browser), in turn so that the load of a shared machine falls on all
+alike, each run in a DDS domain of its own. A run's sample is its seconds per scan in steady state:
+the span between the ``SKIP``-th and the last ``/tracks`` message as the recorder received them,
+over the scans between (the first scans include the processes settling). The ratios of the medians
+to the plain one are the view's cost to the pipeline's throughput.
+
+Browser lag (``view.browser_*``): ``sonar_view --always --qos reliable`` (what ``sonar_stack --view``
+runs) with Debian's headless Chromium (software WebGL, no GPU) showing it in a 1600 x 1000 page; once
+the page's viewer is up, a stack runs. Every ``POLL`` seconds the page is asked for the recording it
+holds (:meth:`Chromium.recording`) and the newest ``log_time`` in it (when the view logged that row)
+is compared with the wall clock: the lag while the stack runs is ``now - newest``, from ``WARM_UP_S``
+after the simulator starts (the page first builds its layout as the topics appear) to its last
+sector. The end lag is from the simulator's last sector (the wall-clock stamp of its "finished"
+line) to the first poll at which the page holds the last rows the view logged; ``view_s`` and
+``page_s`` split it into the view's part (its last row logged) and the page's. The polls themselves
+cost the page some work, so the figures are upper bounds. ``view.browser_{harbour,fls,imaging}`` run
+the shipped stacks at their shipped rates (the imaging scenario cut to ``IMAGING_SECONDS`` of frames)
+and report the end lag. ``view.browser_rates`` runs the harbour stack at ``RATES`` scans per second
+for ``RATE_SECONDS`` of wall-clock time each, in rising order until the page falls more than
+``KEEP_UP_S`` behind, and states the highest rate it kept up with. Registered only where the view
+extra (Rerun) and a Chromium are installed.
 """
 from __future__ import annotations
 
 import importlib.util
+import os
+import re
 import shutil
-import socket
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 
 from sonar_tracking.cli.bench import Case, register
 
-
-def _port() -> int:
-    with socket.socket() as s:
-        s.bind(('127.0.0.1', 0))
-        return s.getsockname()[1]
-
-
 ROUNDS = 3
 SKIP = 20
-KINDS = (None, '', '--always')  # no view, the view, the view logging always
+KINDS = (None, 'gated', 'stack')  # no view; a view without a browser (gated); sonar_stack --view
 _RUNS: dict[str | None, list[float]] = {}
 
+POLL = 1.0
+WARM_UP_S = 5.0
+KEEP_UP_S = 2.0
+RATES = (1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0)
+RATE_SECONDS = 20.0
+IMAGING_SECONDS = 6.0
+_EXTRA: dict[str, dict] = {}
 
-def _stack(view: str | None):
+
+def _stack(kind: str | None):
     def measure() -> list[float]:
-        if view not in _RUNS:  # every kind runs here, in turn
+        if kind not in _RUNS:  # every kind runs here, in turn
             _RUNS.clear()
             for _ in range(ROUNDS):
-                for kind in KINDS:
-                    _RUNS.setdefault(kind, []).append(_seconds_per_scan(kind))
-        return _RUNS.pop(view)
+                for k in KINDS:
+                    _RUNS.setdefault(k, []).append(_seconds_per_scan(k))
+        return _RUNS.pop(kind)
     return measure
 
 
-def _seconds_per_scan(view: str | None) -> float:
+def _wait_line(log: Path, pattern: str, proc: subprocess.Popen, timeout: float) -> re.Match:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        m = re.search(pattern, log.read_text())
+        if m:
+            return m
+        if proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    raise RuntimeError(f'no {pattern!r} in:\n{log.read_text()[-2000:]}')
+
+
+def _stop(proc: subprocess.Popen) -> int:
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGINT)
+        try:
+            proc.wait(30)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    return proc.returncode
+
+
+def _seconds_per_scan(kind: str | None) -> float:
+    from sonar_tracking import process
     from sonar_tracking.io.bags import read_bag
     from sonar_tracking.resources import config_path
     from sonar_tracking.ros.runtime import private_domain
@@ -57,12 +100,30 @@ def _seconds_per_scan(view: str | None) -> float:
     try:
         cmd = [sys.executable, '-m', 'sonar_tracking.cli.sonar_stack', '--config',
                str(config_path('stack_harbour.yaml')), '--record', str(tmp / 'bag')]
-        if view is not None:
-            cmd += ['--view', f'--grpc-port {_port()} --web-port {_port()} {view}']
         private_domain()  # another pipeline on the machine would add its /tracks
-        r = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=300)
-        if r.returncode != 0:
-            raise RuntimeError(f'the stack failed (status {r.returncode}):\n{r.stdout[-2000:]}')
+        view = None
+        if kind == 'gated':  # the view's own default: it logs only while a browser is connected
+            view = subprocess.Popen([sys.executable, '-m', 'sonar_tracking.cli.sonar_view'],
+                                    stdout=(tmp / 'view.log').open('w'), stderr=subprocess.STDOUT,
+                                    start_new_session=True, preexec_fn=process.child_dies_with_parent())
+            _wait_line(tmp / 'view.log', r'view: ', view, 60)
+        elif kind == 'stack':
+            cmd += ['--view']
+        log = tmp / 'stack.log'
+        stack = subprocess.Popen(cmd, stdout=log.open('w'), stderr=subprocess.STDOUT, start_new_session=True,
+                                 preexec_fn=process.child_dies_with_parent())
+        try:
+            if kind == 'stack':  # the stack keeps its view after the run until told to stop
+                _wait_line(log, r'keeps the whole run', stack, 300)
+                _stop(stack)
+            else:
+                stack.wait(300)
+        finally:
+            _stop(stack)
+            if view is not None:
+                _stop(view)
+        if stack.returncode != 0:
+            raise RuntimeError(f'the stack failed (status {stack.returncode}):\n{log.read_text()[-2000:]}')
         stamps = np.array([m.timestamp for m in read_bag(tmp / 'bag', ['/tracks'])], dtype=np.int64)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
@@ -71,12 +132,117 @@ def _seconds_per_scan(view: str | None) -> float:
     return float(stamps[-1] - stamps[SKIP]) * 1e-9 / (len(stamps) - 1 - SKIP)
 
 
+def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = (), timeout: float = 600.0) -> dict:
+    """Run ``stack`` (a shipped stack's name, with ``--set`` settings) while headless Chromium shows
+    ``sonar_view`` of it; returns ``run_lags`` (the page's lag at each poll while the stack ran [s]),
+    ``end_lag`` (the simulator's last sector to the page holding the last rows [s]) and ``scans``."""
+    from sonar_tracking import process
+    from sonar_tracking.cli.view.browser import Chromium, latest_log_time
+    from sonar_tracking.ros.runtime import private_domain
+    private_domain()
+    tmp = Path(tempfile.mkdtemp(prefix='bench_view_browser_'))
+    procs: list[subprocess.Popen] = []
+
+    def start(args: list[str], log: str) -> subprocess.Popen:
+        procs.append(subprocess.Popen([sys.executable, '-m', *args], stdout=(tmp / log).open('w'),
+                                      stderr=subprocess.STDOUT, start_new_session=True,
+                                      preexec_fn=process.child_dies_with_parent()))
+        return procs[-1]
+    try:
+        view = start(['sonar_tracking.cli.sonar_view', '--always', '--qos', 'reliable', *view_args], 'view.log')
+        url = _wait_line(tmp / 'view.log', r'view: (\S+)', view, 60).group(1)
+        with Chromium() as page:
+            page.open(url)
+            deadline = time.monotonic() + 120
+            while page.recording() is None:  # the viewer runs and streams from the view
+                if time.monotonic() > deadline:
+                    raise RuntimeError('the page did not start its viewer within 120 s')
+                time.sleep(0.25)
+            sets = [a for s in settings for a in ('--set', s)]
+            run = start(['sonar_tracking.cli.sonar_stack', stack, *sets], 'stack.log')
+            polls: list[tuple[float, float | None, bool]] = []
+            steady, last, deadline = 0, None, time.monotonic() + timeout
+            while time.monotonic() < deadline:
+                time.sleep(POLL)
+                running = run.poll() is None
+                rec = page.recording()
+                polls.append((time.time(), latest_log_time(rec) if rec else None, running))
+                latest = polls[-1][1]
+                steady = steady + 1 if not running and latest == last else 0
+                last = latest
+                if steady >= int(3.0 / POLL):  # the stack ended and the page got nothing new for 3 s
+                    break
+            text = (tmp / 'stack.log').read_text()
+        m = re.search(r'\[seaking_sim\] \[INFO\] \[(\d+\.\d+)\] \[seaking_sim\]: .*finished after (\d+)', text)
+        if m is None or run.returncode != 0:
+            raise RuntimeError(f'the stack did not finish (status {run.returncode}):\n{text[-2000:]}')
+        finished, scans = float(m.group(1)), int(m.group(2))
+        final = max(t for _, t, _ in polls if t is not None)
+        reached = next(when for when, t, _ in polls if t is not None and t >= final)
+        started = float(re.search(r'\[seaking_sim\] \[INFO\] \[(\d+\.\d+)\] \[seaking_sim\]: starting', text).group(1))
+        run_lags = [when - t for when, t, running in polls
+                    if running and t is not None and started + WARM_UP_S <= when <= finished]
+        return {'run_lags': run_lags, 'end_lag': max(0.0, reached - finished), 'scans': scans,
+                'view_lag': final - finished, 'page_lag': reached - final}
+    finally:
+        for p in procs:
+            _stop(p)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _shipped(name: str, stack: str, settings: list[str]):
+    def measure() -> list[float]:
+        got = browser_lag(stack, settings)
+        lags = got['run_lags'] or [float('nan')]
+        _EXTRA[name] = {'scans': got['scans'], 'run_lag_median_s': float(np.median(lags)),
+                        'run_lag_max_s': max(lags), 'view_s': got['view_lag'], 'page_s': got['page_lag']}
+        return [got['end_lag']]
+    return measure
+
+
+def _rates() -> list[float]:
+    """End lags, rate by rate, until one exceeds ``KEEP_UP_S``; returns the one at the highest rate kept."""
+    lags: dict[float, dict] = {}
+    kept = None
+    for rate in RATES:
+        got = browser_lag('harbour', [f'seaking_sim.rate={rate:g}',
+                                      f'seaking_sim.duration={max(10.0, rate * RATE_SECONDS):g}'])
+        worst = max([got['end_lag'], *got['run_lags']])
+        lags[rate] = {'end': got['end_lag'], 'worst': worst, 'median': float(np.median(got['run_lags'] or [np.nan]))}
+        if worst > KEEP_UP_S:
+            break
+        kept = rate
+    _EXTRA['view.browser_rates'] = {
+        'highest_rate_kept_scans_per_s': kept if kept is not None else 0.0,
+        'lag_by_rate_s (median/worst)': ', '.join(f'{r:g}/s {v["median"]:.2f}/{v["worst"]:.2f}'
+                                                  for r, v in lags.items())}
+    return [lags[kept]['worst'] if kept is not None else lags[RATES[0]]['worst']]
+
+
+def _extra(name: str):
+    return lambda r: _EXTRA.pop(name, {})
+
+
 if importlib.util.find_spec('rerun') is not None:
     register(Case(name='view.pipeline_plain', group='view', make=lambda: _stack(None), self_timed=True, repeats=1,
                   description='seconds per scan of the harbour stack at full speed (recorder receive times)'))
-    register(Case(name='view.pipeline_with_view', group='view', make=lambda: _stack(''), self_timed=True,
+    register(Case(name='view.pipeline_with_view', group='view', make=lambda: _stack('gated'), self_timed=True,
                   repeats=1, compare_to='view.pipeline_plain',
                   description='the same with sonar_view listening, no browser connected'))
-    register(Case(name='view.pipeline_with_view_always', group='view', make=lambda: _stack('--always'),
+    register(Case(name='view.pipeline_with_stack_view', group='view', make=lambda: _stack('stack'),
                   self_timed=True, repeats=1, compare_to='view.pipeline_plain',
-                  description='the same with sonar_view --always logging every message, no browser connected'))
+                  description='the same with sonar_stack --view (the view logs the whole run), no browser'))
+    if shutil.which('chromium') is not None:
+        for _name, _stack_name, _settings, _what in (
+                ('view.browser_harbour', 'harbour', [], 'the harbour stack as shipped (full speed, 100 scans)'),
+                ('view.browser_fls', 'fls', [], 'the FLS stack as shipped (full speed)'),
+                ('view.browser_imaging', 'imaging', [f'seaking_sim.duration={IMAGING_SECONDS:g}'],
+                 f'the imaging stack as shipped (10 frames/s), {IMAGING_SECONDS:g} s of frames')):
+            register(Case(name=_name, group='view', make=lambda n=_name, s=_stack_name, a=_settings: _shipped(n, s, a),
+                          self_timed=True, repeats=1, limit_s=KEEP_UP_S, derived=_extra(_name),
+                          description=f'headless Chromium: seconds from the last sector to the page holding it, '
+                                      f'{_what}'))
+        register(Case(name='view.browser_rates', group='view', make=lambda: _rates, self_timed=True, repeats=1,
+                      limit_s=KEEP_UP_S, derived=_extra('view.browser_rates'),
+                      description='headless Chromium: the harbour stack at rising rates; the worst lag at the '
+                      'highest rate it keeps up with (note: that rate)'))
