@@ -62,6 +62,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from sonar_tracking.core.config import Config, ConfigError, setting
 from sonar_tracking.core.detection.cells import CellDetections, threshold_cells
@@ -453,12 +454,10 @@ def _untracked_density(xy: np.ndarray, tracked_xy: np.ndarray | None, radius: fl
     fx, fy = tracks[:, 0] - pose[0], tracks[:, 1] - pose[1]
     inside = window.disc_fraction(c * fx + s * fy, -s * fx + c * fy, np.full(len(tracks), radius), _DISC)
     area = max(area - math.pi * radius * radius * float(np.sum(inside)), 0.05 * area)
-    if len(xy):
-        d2 = (xy[:, None, 0] - tracks[None, :, 0]) ** 2 + (xy[:, None, 1] - tracks[None, :, 1]) ** 2
-        n = int(np.count_nonzero(d2.min(axis=1) > radius * radius))
-    else:
-        n = 0
-    return n / area
+    if not len(xy):
+        return 0.0
+    nearest, _ = cKDTree(tracks).query(xy, k=1)     # memory linear in detections and tracks
+    return int(np.count_nonzero(nearest > radius)) / area
 
 
 def _group_peaks(amplitudes: np.ndarray, cells: CellDetections) -> np.ndarray:
