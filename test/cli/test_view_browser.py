@@ -93,7 +93,10 @@ def run_in_browser(browser, name: str, tmp_path: Path, entity: str, settings: tu
             data = browser.recording()
             if data is None or not rrd.exists():
                 return None
-            cols, logged = rrd_columns(data), rrd_columns(rrd)
+            try:
+                cols, logged = rrd_columns(data), rrd_columns(rrd)
+            except ValueError:      # no recording store in it yet: the page (or the file) is still empty
+                return None
             rows = len(cols.get(entity, {}).get('Points2D:positions', []))
             return (cols, data) if rows and rows == len(logged[entity]['Points2D:positions']) else None
         cols, data = wait_for(f'the page to hold the rows of {entity} the view logged', whole_run, 180.0)

@@ -47,13 +47,13 @@ def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
     """ESC brings the density back after the clutter turns K while CA alone stays far above it; the
     static scene confirms nothing; a lower design P_fa gives fewer false detections."""
     monkeypatch.setattr(imaging_table, 'ESC_SWITCH', 100)
-    monkeypatch.setattr(imaging_table, 'ESC_SCORED', (500, 600))
+    monkeypatch.setattr(imaging_table, 'ESC_SCORED', (400, 500))
     monkeypatch.setattr(imaging_table, 'PFA_GRID', (1e-3, 1e-6))
     monkeypatch.setattr(imaging_table, 'CFAR_METHODS', ('ca',))
     monkeypatch.setattr(imaging_table, 'RHO_GRID', (5e-4,))
     monkeypatch.setattr(imaging_table, 'T_GRID', (0.99,))
-    sizes = imaging_table.Sizes(runs=2, calibration_runs=1, roc_runs=3, esc_runs=3, static_frames=300,
-                                diver_frames=200, school_frames=100, scale=4, static_scale=4, esc_frames=600)
+    sizes = imaging_table.Sizes(runs=2, calibration_runs=1, roc_runs=3, esc_runs=2, static_frames=300,
+                                diver_frames=200, school_frames=100, scale=4, static_scale=4, esc_frames=500)
     result = imaging_table.run_table(SeedSplit((11,), (21, 22)), sizes)
     json.dumps(result, default=lambda o: o.tolist())
     esc = result['esc']['sets']
