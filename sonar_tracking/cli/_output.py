@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-__all__ = ['write_json', 'write_plot', 'table_command']
+__all__ = ['write_json', 'write_plot', 'table_command', 'seed_split_or_none', 'comma_choices']
 
 
 def write_json(path: Path, data: Any, allow_nan: bool = True) -> None:
@@ -43,3 +43,25 @@ def table_command(name: str, args: Any, run: Callable[[Any], dict], format_table
     if args.json:
         write_json(args.json, result)
     return 0
+
+
+def seed_split_or_none(args: Any, tuned_on) -> Any:
+    """The study's :class:`~sonar_tracking.studies.evidence.SeedSplit` from ``--calibration-seeds`` and
+    ``--seeds``, or None after printing why the seeds are refused (the caller exits with 2)."""
+    from sonar_tracking.studies.evidence import SeedError, seed_split_from_args
+    try:
+        return seed_split_from_args(args, tuned_on=tuned_on)
+    except SeedError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return None
+
+
+def comma_choices(text: str, known, option: str) -> list[str] | None:
+    """The items of a comma list ``text`` if each is one of ``known`` and none repeats; else None after
+    printing why (the caller exits with 2)."""
+    items = [c.strip() for c in text.split(',') if c.strip()]
+    bad = [c for c in items if c not in known]
+    if bad or not items or len(set(items)) != len(items):
+        print(f'error: {option}: unknown or repeated {bad or items}; choose from {",".join(known)}', file=sys.stderr)
+        return None
+    return items

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from sonar_tracking.cli._output import table_command, write_json, write_plot
+from sonar_tracking.cli._output import seed_split_or_none, table_command, write_json, write_plot
 from sonar_tracking.studies import algorithm1
 from sonar_tracking.studies.esc_study import PAPER_DESIRED_DENSITY, StudyConfig, parse_methods, run_once, summarise
 from sonar_tracking.studies.montecarlo import (
@@ -216,11 +216,8 @@ def add_table_arguments(parser) -> None:
 def main_table(args) -> int:
     """Run the ESC comparison at the paper's operating point, out of sample; print the docs/results tables."""
     from sonar_tracking.studies.esc_table import TUNED_ON, format_table, run_table
-    from sonar_tracking.studies.evidence import SeedError, seed_split_from_args
-    try:
-        split = seed_split_from_args(args, tuned_on=TUNED_ON)
-    except SeedError as exc:
-        print(f'error: {exc}', file=sys.stderr)
+    split = seed_split_or_none(args, TUNED_ON)
+    if split is None:
         return 2
     if args.jobs < 1 or (args.scans and args.scans < 4) or not 0 < args.cft_target < 1 or args.max_steps < 0:
         print('error: need --jobs >= 1, --scans 0 or >= 4, 0 < --cft-target < 1 and --max-steps >= 0', file=sys.stderr)

@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from sonar_tracking.cli._output import table_command
+from sonar_tracking.cli._output import comma_choices, seed_split_or_none, table_command
 from sonar_tracking.studies.montecarlo import add_pool_arguments
 
 __all__ = ['add_arguments', 'main_args']
@@ -32,17 +32,10 @@ def add_arguments(parser) -> None:
 
 def main_args(args) -> int:
     """Run the study; print the docs/results tables."""
-    from sonar_tracking.studies.evidence import SeedError, seed_split_from_args
     from sonar_tracking.studies.imaging_table import PARTS, TUNED_ON, Sizes, format_table, run_table
-    try:
-        split = seed_split_from_args(args, tuned_on=TUNED_ON)
-    except SeedError as exc:
-        print(f'error: {exc}', file=sys.stderr)
-        return 2
-    parts = [p.strip() for p in args.parts.split(',') if p.strip()]
-    bad = [p for p in parts if p not in PARTS]
-    if bad or not parts or len(set(parts)) != len(parts):
-        print(f'error: --parts: unknown or repeated {bad or parts}; choose from {",".join(PARTS)}', file=sys.stderr)
+    split = seed_split_or_none(args, TUNED_ON)
+    parts = comma_choices(args.parts, PARTS, '--parts') if split else None
+    if split is None or parts is None:
         return 2
     counts = (args.runs, args.calibration_runs, args.roc_runs, args.esc_runs, args.scale, args.static_scale,
               args.jobs)

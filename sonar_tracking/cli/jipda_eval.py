@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from sonar_tracking.cli._output import table_command
+from sonar_tracking.cli._output import comma_choices, seed_split_or_none, table_command
 from sonar_tracking.studies.montecarlo import add_pool_arguments
 
 __all__ = ['add_arguments', 'main_args']
@@ -27,19 +27,11 @@ def add_arguments(parser) -> None:
 
 def main_args(args) -> int:
     """Run the study; print the docs/results tables."""
-    from sonar_tracking.studies.evidence import SeedError, seed_split_from_args
     from sonar_tracking.studies.jipda_study import CELLS, CONDITIONS
     from sonar_tracking.studies.jipda_table import TUNED_ON, format_table, run_table
-    try:
-        split = seed_split_from_args(args, tuned_on=TUNED_ON)
-    except SeedError as exc:
-        print(f'error: {exc}', file=sys.stderr)
-        return 2
-    conditions = [c.strip() for c in args.conditions.split(',') if c.strip()]
-    bad = [c for c in conditions if c not in CONDITIONS]
-    if bad or not conditions or len(set(conditions)) != len(conditions):
-        print(f'error: --conditions: unknown or repeated {bad or conditions}; choose from {",".join(CONDITIONS)}',
-              file=sys.stderr)
+    split = seed_split_or_none(args, TUNED_ON)
+    conditions = comma_choices(args.conditions, CONDITIONS, '--conditions') if split else None
+    if split is None or conditions is None:
         return 2
     if args.jobs < 1 or (args.scans and args.scans < 2):
         print('error: need --jobs >= 1 and --scans 0 or >= 2', file=sys.stderr)

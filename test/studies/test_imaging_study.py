@@ -69,3 +69,11 @@ def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
     for heading in ('**Detection**', '**ESC under a change of clutter shape**', '**Static empty scene',
                     '**Diver**', '**Crossing school**'):
         assert heading in text
+
+
+@pytest.mark.parametrize('argv', [['--parts', 'roc,foo'], ['--parts', 'esc,esc'], ['--seeds', '501,601'],
+                                  ['--seeds', '601,602', '--scale', '0']])
+def test_sonar_eval_imaging_refuses_bad_arguments_before_running(argv, capsys):
+    from sonar_tracking.cli import sonar_eval
+    assert sonar_eval.main(['imaging', *argv]) == 2
+    assert 'error:' in capsys.readouterr().err
