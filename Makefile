@@ -57,7 +57,7 @@ build: $(STAMP)
 # The suite runs with install/ sourced, as `ros2 run` would.
 TEST_DEPS := build interfaces view-deps lint kernels
 test: $(TEST_DEPS)
-	source install/setup.bash && $(VPY) -m pytest test -m "not slow"
+	source install/setup.bash && $(VPY) -m pytest test -m "not slow" -n 2 --dist loadfile
 
 test-slow: $(TEST_DEPS)
 	source install/setup.bash && $(VPY) -m pytest test -m slow

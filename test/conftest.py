@@ -8,6 +8,11 @@ import pytest
 # Before any rclpy import: a per-run domain so parallel runs on one machine do not see each other,
 # and the package's DDS profile, as every process of the package uses it.
 os.environ.setdefault('ROS_DOMAIN_ID', str(1 + os.getpid() % 100))
+# pytest -n: one domain per worker, moved once (a test's own pytest child inherits the worker's).
+_worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+if _worker.startswith('gw') and os.environ.get('SONAR_TEST_WORKER') != _worker:
+    os.environ['ROS_DOMAIN_ID'] = str((int(os.environ['ROS_DOMAIN_ID']) + int(_worker[2:])) % 100 + 1)
+    os.environ['SONAR_TEST_WORKER'] = _worker
 os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
 from sonar_tracking import process  # noqa: E402
 from sonar_tracking.ros.runtime import configure_dds  # noqa: E402 (must precede rclpy)

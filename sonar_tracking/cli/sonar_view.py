@@ -61,6 +61,12 @@ MISSING = ('sonar_view needs the view extra (Rerun, ~170 MB): run `make view` '
            '(or `.venv/bin/pip install -r requirements-view.txt`)')
 
 
+# Queue of each record topic (tracks, detections, truth; small messages): a stack at rate 0 sends
+# a hundred scans a second while a busy view logs slower, and a message that leaves a keep-last
+# queue is a hole in the run. 1000 bounds the memory to a few MB per topic.
+RECORD_DEPTH = 1000
+
+
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog='sonar_view', description=__doc__.split('\n\n')[0])
     p.add_argument('--bag', type=Path, default=None, metavar='DIR', help='show a recorded bag instead of live topics')
@@ -262,7 +268,7 @@ def _show_live(scene, rec, url: str | None, ros_args: list[str], qos: str, gate:
                 super().__init__('sonar_view')
                 types = rclpy_types()
                 # Record topics by the package's reader rule; best effort never slows a publisher.
-                records = input_profile('reliable' if qos == 'reliable' else 'sensor_data', depth=50)
+                records = input_profile('reliable' if qos == 'reliable' else 'sensor_data', depth=RECORD_DEPTH)
                 self.specs = [(topic, types.cls(msgtype), qos_profile_sensor_data if topic in IMAGE_TOPICS
                                else records) for topic, msgtype in TOPICS.items()]
                 self.connected = gate is None
