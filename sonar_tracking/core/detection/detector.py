@@ -68,7 +68,7 @@ from sonar_tracking.core.config import Config, ConfigError, setting
 from sonar_tracking.core.detection.cells import CellDetections, threshold_cells
 from sonar_tracking.core.detection.cfar import CFAR_METHODS, Cfar, CfarConfig
 from sonar_tracking.core.detection.conversion import convert_measurements
-from sonar_tracking.core.detection.esc import ExtremumSeekingController
+from sonar_tracking.core.detection.esc import ERROR_LAWS, ExtremumSeekingController
 from sonar_tracking.core.detection.scmde import PolarWindow, scmde, sunflower
 from sonar_tracking.core.intensity import IntensityConfig, condition, zero_floor
 from sonar_tracking.core.records import DETECTION_DTYPE
@@ -169,6 +169,10 @@ class EscConfig(Config):
     dither_decay: float = setting(0.9, 'd of eq. (45)', low=0.0, high=1.0)
     gain: float = setting(0.15, 'integrator gain (forward-Euler step per scan); see core/detection/esc.py',
                           low=0.0, low_open=True, high=10.0)
+    error: str = setting('inverse', "ESC error law: 'inverse', the paper's compandor on 1/rho_k - 1/rho_D (eqs. 43, "
+                         "46), or 'linear', a step proportional to rho_k / rho_D - 1, which settles on rho_D also "
+                         "when the density is noisy (few detections per update); see core/detection/esc.py",
+                         choices=ERROR_LAWS)
     density_source: str = setting('sector', "ESC input: mean density of the 'sector' or near the 'best_track'",
                                   choices=('sector', 'best_track'))
     local_radius: float = setting(200.0, 'best_track: the density is measured in a disc of this radius around the '
@@ -241,7 +245,7 @@ class ActiveDetector:
         self.cfar = None if t.method == 'fixed' else Cfar(t.method, config.cfar)
         tau0 = t.initial if self.cfar is None else self.cfar.alpha0
         self.esc = ExtremumSeekingController(self.desired_density, tau0, t.minimum, t.maximum,
-                                             e.dither_amplitude, e.dither_decay, e.gain)
+                                             e.dither_amplitude, e.dither_decay, e.gain, e.error)
         self._enabled = e.enabled
         self.background = SectorBackground(config.structure)
         self.warmup = WarmUp()

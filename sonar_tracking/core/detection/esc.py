@@ -42,13 +42,29 @@ squared compandor output is "multiplied by beta * delta_k" and that the dither i
 integrated output. We take the second reading: multiplying the integrand by the alternating
 dither would flip the direction of every other step whatever the error, and the loop could not
 settle. The integrator is clipped to the threshold bounds so it cannot wind up.
+
+Error law (``error``): ``'inverse'`` is the paper's branch above. Its integrand is odd in the
+*squared* compandor output, so with a noisy density (few detections per update, as on an imaging
+sonar's frames) its zero-mean point lies above ``rho_D``: a mean of ten Poisson detections per
+update settles near ``1.1-1.4 rho_D`` (docs/algorithms/active_detector.md). ``'linear'`` keeps the
+loop (integrator, dither, bounds, ``beta / rho_D^2 = tau_0`` as the step's unit) and replaces the
+two branches by the density error itself,
+
+    step_k = tau_0 * clip(rho_k / rho_D - 1, -1, (e - 1)^2),
+
+whose mean is zero where the mean density is ``rho_D`` whatever its noise; the clip bounds are the
+paper branch's own extremes (``-tau_0`` for no clutter, ``(e - 1)^2 tau_0`` for far too much).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-__all__ = ['compandor', 'sign_block', 'ExtremumSeekingController', 'EscState']
+__all__ = ['compandor', 'sign_block', 'ExtremumSeekingController', 'EscState', 'ERROR_LAWS']
+
+ERROR_LAWS = ('inverse', 'linear')
+# The paper branch's largest step up, ``(e - 1)^2`` in units of tau_0; the linear law's clip.
+_MAX_UP = (math.e - 1.0) ** 2
 
 
 def compandor(x: float, rho_d: float) -> float:
@@ -80,7 +96,10 @@ class ExtremumSeekingController:
     """ESC of §3: feed each scan's mean estimated density, get the next scan's threshold."""
 
     def __init__(self, desired_density: float, tau0: float, tau_min: float, tau_max: float,
-                 dither_amplitude: float = 0.1, dither_decay: float = 0.9, gain: float = 0.15) -> None:
+                 dither_amplitude: float = 0.1, dither_decay: float = 0.9, gain: float = 0.15,
+                 error: str = 'inverse') -> None:
+        if error not in ERROR_LAWS:
+            raise ValueError(f'ESC error law {error!r} is not one of {list(ERROR_LAWS)}')
         if not desired_density > 0:
             raise ValueError(f'desired clutter density {desired_density} must be > 0')
         if not tau_min <= tau0 <= tau_max:
@@ -91,6 +110,7 @@ class ExtremumSeekingController:
         self.a_max = dither_amplitude * tau0
         self.decay = dither_decay
         self.gain = gain
+        self.error = error
         self.beta = self.rho_d ** 2 * self.tau0  # eq. (44)
         self.reset()
 
@@ -108,7 +128,10 @@ class ExtremumSeekingController:
         return self.a_max * self.decay ** k * (-1.0 if k % 2 else 1.0)
 
     def step_size(self, density: float) -> float:
-        """The integrand ``f_s(e) beta f_c(e)^2`` for a scan's mean estimated density."""
+        """The integrand for a scan's mean estimated density: ``f_s(e) beta f_c(e)^2`` (eqs. 43-46), or
+        the linear law's ``tau_0 clip(rho_k / rho_D - 1, -1, (e - 1)^2)``."""
+        if self.error == 'linear':
+            return self.tau0 * min(max(density / self.rho_d - 1.0, -1.0), _MAX_UP)
         e = math.inf if density <= 0 else 1.0 / density - 1.0 / self.rho_d
         return sign_block(e) * self.beta * compandor(e, self.rho_d) ** 2
 

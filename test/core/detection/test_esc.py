@@ -110,3 +110,32 @@ def test_unit_gain_limit_cycles_which_is_why_the_gain_is_small(tau_stars):
     target = tau_stars[1.2]
     unit = np.array([run_esc(1.2, 5.0, seed=s, gain=1.0)[29] for s in range(30)])
     assert np.mean(np.abs(unit - target) <= 0.05 * target) < 0.5
+
+
+def settled_density(error: str, counts: float, seed: int, updates: int = 3000, gain: float = 0.05) -> float:
+    """Mean of the true density over rho_D once the loop settled, when each update sees a Poisson count
+    of mean ``counts`` at rho_D and the density falls as exp(-tau), as CFAR's does with its scale."""
+    rng = np.random.default_rng(seed)
+    esc = ExtremumSeekingController(1.0, tau0=12.0, tau_min=1.0, tau_max=40.0, gain=gain, error=error)
+    seen = []
+    for k in range(updates):
+        rho = math.exp(-(esc.threshold - 12.0))
+        esc.update(rng.poisson(counts * rho) / counts)
+        if k >= updates // 3:
+            seen.append(rho)
+    return float(np.mean(seen))
+
+
+def test_the_linear_error_law_settles_on_rho_d_where_the_papers_settles_above_it():
+    # Ten detections per update (an imaging sonar's ESC period): the paper's squared compandor has its
+    # zero-mean point above rho_D; the linear law's is rho_D itself.
+    inverse = np.mean([settled_density('inverse', 10.0, seed) for seed in range(4)])
+    linear = np.mean([settled_density('linear', 10.0, seed) for seed in range(4)])
+    assert inverse > 1.05
+    assert abs(linear - 1.0) < 0.03
+    # The same largest steps as the paper's branch: -tau_0 for no clutter, (e - 1)^2 tau_0 at most.
+    esc = ExtremumSeekingController(1e-4, tau0=3.0, tau_min=0.5, tau_max=30.0, error='linear')
+    assert (esc.step_size(0.0), esc.step_size(1e-4), esc.step_size(1.5e-4)) == pytest.approx((-3.0, 0.0, 1.5))
+    assert esc.step_size(1.0) == pytest.approx(3.0 * (math.e - 1) ** 2)
+    with pytest.raises(ValueError, match='error law'):
+        ExtremumSeekingController(1e-4, tau0=3.0, tau_min=0.5, tau_max=30.0, error='log')
