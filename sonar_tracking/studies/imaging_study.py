@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from sonar_tracking.core.detection import ActiveDetector, DetectorConfig, confirmed_positions
+from sonar_tracking.core.fls.pipeline import FlsConfig, FlsProcessor
 from sonar_tracking.core.tracking.config import TrackerConfig
 from sonar_tracking.core.tracking.detections import detections_to_measurements
 from sonar_tracking.core.tracking.tracker import ImmIpdaTracker
@@ -50,7 +51,7 @@ from sonar_tracking.sim.motion import ScriptedTrajectory
 from sonar_tracking.sim.simulator import child_seeds
 from sonar_tracking.studies.evidence import GospaSpec
 
-__all__ = ['PARAMS_FILES', 'CELL_SETTINGS', 'ImagingRun', 'front_end', 'run_once', 'poisson_upper',
+__all__ = ['PARAMS_FILES', 'CELL_SETTINGS', 'ImagingRun', 'front_end', 'region_front_end', 'run_once', 'poisson_upper',
            'GOSPA', 'GATE', 'CLEARANCE']
 
 #: The parameter file (config/sensors/NAME.yaml) of each simulated head.
@@ -58,6 +59,10 @@ PARAMS_FILES = {'oculus_m750d': 'oculus_m750d', 'gemini_720': 'gemini_720', 'ari
 #: Settings counted in beams and in bins, divided by the scale of a reduced frame.
 CELL_SETTINGS = {'beams': ('cfar.stride_beams', 'cfar.guard_beams', 'cfar.reach_beams', 'cells.merge_beams'),
                  'bins': ('cfar.stride_bins', 'cfar.guard_bins', 'cfar.reach_bins', 'cells.merge_bins')}
+#: The region path's window sizes in cells (odd), divided by the scale and kept odd; its area in cells,
+#: divided by the scale squared.
+FLS_WINDOWS = ('filter.window_bins', 'filter.window_beams', 'filter.background_bins')
+FLS_AREAS = ('segment.min_cells',)
 #: A target is tracked (or detected) by a confirmed track (or detection) this close [m]: a diver is 1.8 m long.
 GATE = 1.5
 #: A confirmed track that never came this close to a target is false [m].
@@ -71,6 +76,23 @@ def _node_settings(params_file: str, node: str) -> dict[str, Any]:
     from sonar_tracking.resources import config_path
     data = param_files.load(config_path(f'sensors/{params_file}.yaml'))
     return dict(param_files.parameters_for(data, node) or {})
+
+
+def region_front_end(sensor: str, scale: int = 1, overrides: dict | None = None) -> FlsConfig:
+    """The FLS region path's settings of ``sensor``'s preset file (its ``fls_features`` section) for
+    frames reduced by ``scale`` (module docstring), then ``overrides`` (flat names)."""
+    keys = {s.name for s in FlsConfig.settings()}
+    flat = {k: v for k, v in _node_settings(PARAMS_FILES[sensor], 'fls_features').items() if k in keys}
+    flat['intensity.coding'] = 'db'
+    if scale > 1:
+        for name in FLS_WINDOWS:
+            if name in flat:
+                flat[name] = max(1, int(flat[name]) // scale) | 1
+        for name in FLS_AREAS:
+            if name in flat:
+                flat[name] = float(flat[name]) / scale ** 2
+    flat.update(overrides or {})
+    return FlsConfig.from_flat(flat)
 
 
 def front_end(sensor: str, scale: int = 1, detector: dict | None = None,
@@ -107,7 +129,9 @@ class ImagingRun:
     scenario. ``clutter_switch``:
     ``(frame, law, k_shape)`` changes the clutter law from that frame on. ``platform_speed`` > 0
     replaces the scenario's platform by one moving straight ahead at that speed [m/s] (speckle
-    decorrelates frame to frame). ``series``: keep the per-frame ESC density and scale.
+    decorrelates frame to frame). ``series``: keep the per-frame ESC density and scale. ``path``:
+    ``'cfar'`` (``active_detector``) or ``'regions'``: the FLS region path (``fls_features``, the
+    preset's section with ``fls`` overrides), whose regions are scored as the detections and not tracked.
     """
 
     scenario: str
@@ -123,6 +147,8 @@ class ImagingRun:
     clutter_switch: tuple | None = None
     platform_speed: float = 0.0
     series: bool = False
+    path: str = 'cfar'
+    fls: tuple = ()
 
     def configs(self) -> tuple[DetectorConfig, TrackerConfig]:
         return front_end(self.sensor, self.scale, dict(self.detector), dict(self.tracker))
@@ -201,6 +227,7 @@ def run_once(run: ImagingRun, seed: np.random.SeedSequence) -> dict:
         sim.scene.platform = ScriptedTrajectory(0.0, 0.0, run.platform_speed, 0.0)
     dcfg, tcfg = run.configs()
     detector = ActiveDetector(dcfg)
+    regions = FlsProcessor(region_front_end(run.sensor, run.scale, dict(run.fls))) if run.path == 'regions' else None
     confirm = dict(run.confirm)
     trackers = {m: ImmIpdaTracker(TrackerConfig.from_flat(
         {'association.method': m, **({'existence.confirm': confirm[m]} if m in confirm else {})}, base=tcfg))
@@ -216,8 +243,12 @@ def run_once(run: ImagingRun, seed: np.random.SeedSequence) -> dict:
         s = sim.next_sector()
         if s is None:
             break
-        result = detector.process(s.amplitudes, s.geometry, s.pose, stamp=s.stamp, tracked_xy=tracked_xy)
-        det = result.detections
+        if regions is not None:
+            found = [f.regions for f in regions.add_sector(s.amplitudes, s.geometry, s.pose, s.stamp)]
+            det = np.concatenate(found) if found else np.zeros(0, [('x', float), ('y', float)])
+        else:
+            result = detector.process(s.amplitudes, s.geometry, s.pose, stamp=s.stamp, tracked_xy=tracked_xy)
+            det = result.detections
         truth_ids, states = sim.truth(s.stamp)
         truth_xy = states[:, :2]
         seen = _in_fan(truth_xy, s.pose, range_max, half_fov)
@@ -230,6 +261,8 @@ def run_once(run: ImagingRun, seed: np.random.SeedSequence) -> dict:
             false_dets += len(dxy)
         pairs += int(np.count_nonzero(seen))
         n_frames += 1
+        if regions is not None:
+            continue
         if run.series:
             density.append(result.mean_density)
             scale.append(result.threshold)

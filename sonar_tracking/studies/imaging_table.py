@@ -6,8 +6,10 @@ evaluation seed sets.
 Parts (``--parts``):
 
 * ``roc``: detection probability of the diver against false detections per frame for each CFAR
-  variant (CA, GO, OS) at the design false-alarm probabilities of :data:`PFA_GRID`, ESC and
-  structure rejection off (the fixed operating points themselves; nothing is chosen). Runs of
+  variant (CA, GO, OS) at the design false-alarm probabilities of :data:`PFA_GRID`, and for the FLS
+  region path (the preset's ``fls_features`` section, its regions as the detections) at the seed
+  levels of :data:`SEED_DB_GRID`; ESC and structure rejection off (the fixed operating points
+  themselves; nothing is chosen). Runs of
   :data:`ROC_FRAMES` frames each, starting at a time drawn per run over the scenario.
 * ``esc``: ESC holding the false-detection density when the clutter changes shape: Rayleigh speckle,
   then K (shape 0.5) from frame :data:`ESC_SWITCH`, on a moving platform (fresh speckle each frame),
@@ -57,6 +59,9 @@ SENSOR = 'oculus_m750d'
 REDUCED = 2
 PFA_GRID = (1e-3, 1e-4, 1e-5, 1e-6)
 CFAR_METHODS = ('ca', 'go', 'os')
+#: The FLS region path's operating points: its seed level above the background [dB] (the preset: 6).
+SEED_DB_GRID = (2.0, 3.0, 4.0, 6.0)
+REGION_GROW_DB = 3.0   # the region path's default growth level, lowered with a seed below it
 ROC_FRAMES = 5
 ESC_WINDOW = (('imaging.n_beams', 128), ('imaging.fov_deg', 32.5), ('imaging.n_bins', 256),
               ('imaging.range_max', 7.78))
@@ -112,6 +117,14 @@ def _roc(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
             det = [r['detector'] for rs in runs.values() for r in rs]
             rows.append({'method': method, 'pfa': pfa, 'pd': _mean_ci([d['pd'] for d in det]),
                          'false_per_frame': _mean_ci([d['false_per_frame'] for d in det]), 'runs': len(det)})
+    for seed_db in SEED_DB_GRID:
+        run = ImagingRun('imaging_diver', SENSOR, sizes.scale, ROC_FRAMES, start=-1.0, methods=(), path='regions',
+                         fls=(('structure.enabled', False), ('segment.seed_db', seed_db),
+                              ('segment.grow_db', min(REGION_GROW_DB, seed_db))))
+        runs = _runs(run, split.evaluation[:1], sizes.roc_runs, pool, progress)
+        det = [r['detector'] for rs in runs.values() for r in rs]
+        rows.append({'method': 'regions', 'seed_db': seed_db, 'pd': _mean_ci([d['pd'] for d in det]),
+                     'false_per_frame': _mean_ci([d['false_per_frame'] for d in det]), 'runs': len(det)})
     return {'frames_per_run': ROC_FRAMES, 'scale': sizes.scale, 'seed': split.evaluation[0], 'rows': rows}
 
 
@@ -255,11 +268,12 @@ def format_table(result: dict) -> str:
         r = result['roc']
         lines += ['', f'**Detection** (`imaging_diver`, frames reduced {r["scale"]}x, {r["frames_per_run"]} frames '
                   f'per run from a random time, ESC and structure rejection off, seed {r["seed"]}):', '',
-                  '| CFAR | design P_fa | runs | P_D of the diver | false detections / frame |',
+                  '| front end | operating point | runs | P_D of the diver | false detections / frame |',
                   '|---|---|---|---|---|']
         for row in r['rows']:
-            lines.append(f'| {row["method"].upper()} | {row["pfa"]:g} | {row["runs"]} | {_ci(row["pd"])} | '
-                         f'{_ci(row["false_per_frame"])} |')
+            point = (f'seed {row["seed_db"]:g} dB' if row['method'] == 'regions' else f'design P_fa {row["pfa"]:g}')
+            name = 'FLS regions' if row['method'] == 'regions' else f'{row["method"].upper()}-CFAR'
+            lines.append(f'| {name} | {point} | {row["runs"]} | {_ci(row["pd"])} | {_ci(row["false_per_frame"])} |')
     if 'esc' in result:
         e = result['esc']
         lines += ['', f'**ESC under a change of clutter shape** (Rayleigh, then K shape 0.5 from frame '

@@ -11,7 +11,7 @@ import pytest
 from sonar_tracking.core.detection.cfar import Cfar
 from sonar_tracking.studies import imaging_table
 from sonar_tracking.studies.evidence import SeedSplit
-from sonar_tracking.studies.imaging_study import ImagingRun, front_end, poisson_upper, run_once
+from sonar_tracking.studies.imaging_study import ImagingRun, front_end, poisson_upper, region_front_end, run_once
 
 
 def test_the_front_end_is_the_preset_file_and_reduced_frames_divide_the_cell_counts():
@@ -26,6 +26,15 @@ def test_the_front_end_is_the_preset_file_and_reduced_frames_divide_the_cell_cou
         c = cfg.cfar
         assert c.reach_bins >= c.guard_bins + c.stride_bins and c.reach_beams >= c.guard_beams + c.stride_beams
         assert Cfar(cfg.threshold.method, c).training_cells > 0
+
+
+def test_the_region_path_is_the_presets_fls_section_with_windows_kept_odd_on_reduced_frames():
+    full = region_front_end('oculus_m750d')
+    half = region_front_end('oculus_m750d', 2, {'segment.seed_db': 3.0})
+    assert full.intensity.coding == 'db' and full.segment.seed_db == 6.0 and half.segment.seed_db == 3.0
+    assert (full.filter.window_bins, full.filter.window_beams, full.filter.background_bins) == (5, 3, 81)
+    assert (half.filter.window_bins, half.filter.window_beams, half.filter.background_bins) == (3, 1, 41)
+    assert half.segment.min_cells == full.segment.min_cells / 4
 
 
 def test_poisson_upper_bound():
@@ -50,6 +59,7 @@ def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
     monkeypatch.setattr(imaging_table, 'ESC_SCORED', (400, 500))
     monkeypatch.setattr(imaging_table, 'PFA_GRID', (1e-3, 1e-6))
     monkeypatch.setattr(imaging_table, 'CFAR_METHODS', ('ca',))
+    monkeypatch.setattr(imaging_table, 'SEED_DB_GRID', (3.0,))
     monkeypatch.setattr(imaging_table, 'RHO_GRID', (5e-4,))
     monkeypatch.setattr(imaging_table, 'T_GRID', (0.99,))
     sizes = imaging_table.Sizes(runs=2, calibration_runs=1, roc_runs=3, esc_runs=2, static_frames=300,
@@ -62,8 +72,10 @@ def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
         assert off > 4.0, 'CA-CFAR alone under K clutter exceeds its design density several times'
         assert on < 0.5 * off
     assert all(v['confirmed_tracks'] == 0 for v in result['static']['sets'].values())
-    rows = {row['pfa']: row for row in result['roc']['rows']}
+    rows = {row['pfa']: row for row in result['roc']['rows'] if row['method'] == 'ca'}
     assert rows[1e-3]['false_per_frame']['mean'] > 10 * rows[1e-6]['false_per_frame']['mean']
+    regions = [row for row in result['roc']['rows'] if row['method'] == 'regions']
+    assert [row['seed_db'] for row in regions] == [3.0] and regions[0]['runs'] == 3
     assert result['diver']['read_back']['equal']
     text = imaging_table.format_table(json.loads(json.dumps(result, default=lambda o: o.tolist())))
     for heading in ('**Detection**', '**ESC under a change of clutter shape**', '**Static empty scene',
