@@ -124,7 +124,7 @@ class StructureConfig(Config):
                        'changes). The FLS pipeline learns on its image grid', choices=('auto', 'sensor', 'world'))
     world_cell: float = setting(0.0, 'cell size of the world-frame map (and of the FLS image background); 0 = the '
                                 'sensor cell at mid range (at least an image pixel)', unit='m', low=0.0, high=1e4)
-    max_map_cells: int = setting(2_000_000, 'memory bound of each background map (sensor map 8 bytes a cell, world '
+    max_map_cells: int = setting(2_000_000, 'memory bound of each background map (sensor map 4 bytes a cell, world '
                                  'map 24); a sonar with more cells gets coarser map cells', low=1000,
                                  high=50_000_000, read_only=True)
     max_length: float = setting(0.0, 'echoes longer than this are structure; 0 = no limit', unit='m',
