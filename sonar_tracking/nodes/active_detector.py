@@ -38,8 +38,8 @@ from sonar_tracking.core.detection import (
     DetectionInputError,
     DetectorConfig,
     best_track_focus,
-    confirmed_positions,
     resolve_desired_density,
+    tracked_positions,
 )
 from sonar_tracking.resources import config_path
 from sonar_tracking.ros import (
@@ -125,7 +125,7 @@ class ActiveDetectorNode(SonarNode):
             self.say('error', f'tracks message without x, y, existence, confirmed: {tracks.dtype.names}', 'bad_tracks')
             return
         self.best_track = best_track_focus(tracks)
-        self.tracked = confirmed_positions(tracks)
+        self.tracked = tracked_positions(tracks, self.detector.config.esc.exclude_existence)
 
     # -- processing --------------------------------------------------------------------------
     def _on_reset(self) -> None:

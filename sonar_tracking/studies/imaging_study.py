@@ -8,8 +8,8 @@ one or more trackers (IMM-IPDA, IMM-JIPDA) set from the preset's parameter file
 (``config/sensors/NAME.yaml``: the ``active_detector`` and ``imm_ipda_tracker`` sections, exactly as
 ``--params-file`` gives them to the nodes; ``intensity.coding: db`` for the simulator's frames, as
 ``config/stack_imaging.yaml`` sets it). Every tracker sees the same detections; ESC's
-``esc.exclude_radius`` follows the first tracker's confirmed tracks, as the detector node follows
-the ``tracks`` topic.
+``esc.exclude_radius`` follows the first tracker's tracks (confirmed, or of existence at least
+``esc.exclude_existence``), as the detector node follows the ``tracks`` topic.
 
 **Reduced frames** (``scale`` s > 1): every s-th beam and bin (the Oculus's 512 x 1000 cells become
 256 x 500 at s = 2) over the same fan and range, with the same beam width and pulse, and the preset's
@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from sonar_tracking.core.detection import ActiveDetector, DetectorConfig, confirmed_positions
+from sonar_tracking.core.detection import ActiveDetector, DetectorConfig, tracked_positions
 from sonar_tracking.core.fls.pipeline import FlsConfig, FlsProcessor
 from sonar_tracking.core.tracking.config import TrackerConfig
 from sonar_tracking.core.tracking.detections import detections_to_measurements
@@ -271,7 +271,7 @@ def run_once(run: ImagingRun, seed: np.random.SeedSequence) -> dict:
             tracks = trk.step(s.stamp, z, R, rho)
             scores[m].frame(truth_ids, truth_xy, seen, tracks)
             if i == 0:
-                tracked_xy = confirmed_positions(tracks)
+                tracked_xy = tracked_positions(tracks, dcfg.esc.exclude_existence)
     hours = n_frames / cfg.imaging.frame_rate / 3600.0
     out: dict[str, Any] = {m: scores[m].result(hours) for m in run.methods}
     out['detector'] = {'frames': n_frames, 'pd': detected / pairs if pairs else math.nan,

@@ -12,7 +12,7 @@ from sonar_tracking.core.detection.detector import (
                        ScmdeConfig,
                        ThresholdConfig,
                        best_track_focus,
-                       confirmed_positions,
+                       tracked_positions,
 )
 from sonar_tracking.core.detection.esc import ExtremumSeekingController, compandor, sign_block
 from sonar_tracking.core.detection.scmde import PolarWindow, scmde
@@ -21,4 +21,4 @@ __all__ = ['CellDetections', 'threshold_cells', 'convert_measurements', 'Desired
            'ActiveDetector', 'CellConfig', 'DetectionInputError', 'DetectorConfig', 'EscConfig', 'ScanResult',
            'ScmdeConfig', 'ThresholdConfig', 'ExtremumSeekingController', 'compandor', 'sign_block',
            'PolarWindow', 'scmde', 'resolve_desired_density', 'best_track_focus',
-           'confirmed_positions']
+           'tracked_positions']

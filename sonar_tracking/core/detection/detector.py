@@ -43,7 +43,9 @@ For each sector (one scan of the harbour sonar):
    density). With ``esc.exclude_radius`` r > 0 the scan's density is instead the count of the
    detections farther than r from every confirmed track over the window's area outside those discs:
    at frame rate a target's own detections are as many as the false ones and would otherwise raise
-   the threshold until the target is lost.
+   the threshold until the target is lost. ``esc.exclude_existence`` p < 1 counts tracks not yet
+   confirmed with existence at least p among those tracks: where several targets appear at once (a
+   school), those the tracker has not confirmed yet would otherwise be most of the density.
    Around the track, the density is the number of detections within ``esc.local_radius`` divided
    by the area of that disc inside the sector: an average of the detections' own SCMDE values
    would be dominated by a denser neighbouring region (it has more detections, each with a high
@@ -83,7 +85,7 @@ from sonar_tracking.core.structure import (
 )
 
 __all__ = ['ThresholdConfig', 'CellConfig', 'ScmdeConfig', 'EscConfig', 'DetectorConfig', 'ActiveDetector',
-           'ScanResult', 'DetectionInputError', 'best_track_focus', 'confirmed_positions']
+           'ScanResult', 'DetectionInputError', 'best_track_focus', 'tracked_positions']
 
 _SQRT12 = 2.0 * math.sqrt(3.0)
 _DISC = sunflower(256)
@@ -182,6 +184,10 @@ class EscConfig(Config):
                                     'area outside those discs (0 = every detection counts, as in the paper; needed '
                                     'where a frame holds about as many false detections as targets)', unit='m',
                                     low=0.0, high=1e5)
+    exclude_existence: float = setting(1.0, 'esc.exclude_radius also around tracks not yet confirmed whose '
+                                       'existence is at least this (1 = confirmed tracks only; where targets are '
+                                       'several and false detections few, the targets a track has not confirmed '
+                                       'yet would be most of what ESC counts)', low=0.0, low_open=True, high=1.0)
     period: int = setting(1, 'scans per ESC update: ESC sees the mean density of this many scans (1: every scan, as '
                           'in the paper; imaging sonars see too few false detections in one frame)', low=1, high=10000)
 
@@ -475,11 +481,13 @@ def _group_peaks(amplitudes: np.ndarray, cells: CellDetections) -> np.ndarray:
 MAX_TRACKED = 1000
 
 
-def confirmed_positions(tracks: np.ndarray) -> np.ndarray:
-    """World positions ``(K, 2)`` of the confirmed tracks among ``tracks`` (``x, y, existence,
-    confirmed`` records) with a finite position: the tracks ``esc.exclude_radius`` keeps ESC's input
+def tracked_positions(tracks: np.ndarray, min_existence: float = 1.0) -> np.ndarray:
+    """World positions ``(K, 2)`` of the tracks among ``tracks`` (``x, y, existence, confirmed``
+    records) that are confirmed or whose existence is at least ``min_existence`` (``esc.exclude_existence``;
+    1: confirmed only), with a finite position: the tracks ``esc.exclude_radius`` keeps ESC's input
     clear of; at most :data:`MAX_TRACKED`, those of highest existence."""
-    ok = tracks[(tracks['confirmed'] != 0) & np.isfinite(tracks['x']) & np.isfinite(tracks['y'])]
+    likely = (tracks['confirmed'] != 0) | (tracks['existence'] >= min_existence)
+    ok = tracks[likely & np.isfinite(tracks['x']) & np.isfinite(tracks['y'])]
     if len(ok) > MAX_TRACKED:
         ok = ok[np.argsort(-np.nan_to_num(ok['existence'], nan=-1.0), kind='stable')[:MAX_TRACKED]]
     return np.stack([ok['x'], ok['y']], axis=-1).astype(float).reshape(-1, 2)

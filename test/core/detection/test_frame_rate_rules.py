@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from sonar_tracking.core.detection import ActiveDetector, DetectorConfig, confirmed_positions
+from sonar_tracking.core.detection import ActiveDetector, DetectorConfig, tracked_positions
 from sonar_tracking.core.records import TRACK_DTYPE
 from sonar_tracking.core.sector import SectorGeometry
 
@@ -60,13 +60,16 @@ def test_esc_counts_only_the_detections_away_from_confirmed_tracks():
         n / _window_area())
 
 
-def test_confirmed_positions_takes_confirmed_finite_tracks_only():
+def test_tracked_positions_takes_confirmed_or_likely_finite_tracks():
     tracks = np.zeros(4, TRACK_DTYPE)
     tracks['x'], tracks['y'] = [1.0, 2.0, np.nan, 4.0], [5.0, 6.0, 7.0, 8.0]
     tracks['confirmed'] = [1, 0, 1, 1]
-    tracks['existence'] = 0.99
-    assert confirmed_positions(tracks).tolist() == [[1.0, 5.0], [4.0, 8.0]]
-    assert confirmed_positions(tracks[:0]).shape == (0, 2)
+    tracks['existence'] = [0.99, 0.6, 0.99, 0.99]
+    assert tracked_positions(tracks).tolist() == [[1.0, 5.0], [4.0, 8.0]]
+    # A tentative track of existence at least esc.exclude_existence counts too.
+    assert tracked_positions(tracks, 0.5).tolist() == [[1.0, 5.0], [2.0, 6.0], [4.0, 8.0]]
+    assert tracked_positions(tracks, 0.7).tolist() == [[1.0, 5.0], [4.0, 8.0]]
+    assert tracked_positions(tracks[:0]).shape == (0, 2)
 
 
 def test_target_size_floors_the_position_spread_of_small_detections():
