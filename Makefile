@@ -60,7 +60,7 @@ test: $(TEST_DEPS)
 	source install/setup.bash && $(VPY) -m pytest test -m "not slow" -n 2 --dist loadfile
 
 test-slow: $(TEST_DEPS)
-	source install/setup.bash && $(VPY) -m pytest test -m slow
+	source install/setup.bash && $(VPY) -m pytest test -m slow -n 2 --dist loadgroup
 
 test-all: $(TEST_DEPS)
 	source install/setup.bash && $(VPY) -m pytest test

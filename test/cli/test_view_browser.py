@@ -21,7 +21,9 @@ OUT = Path(__file__).resolve().parents[2] / 'out' / 'test_view_browser'
 WIDTH, HEIGHT = 1600, 1000
 
 # The view's file is read while it is written (no footer yet): Rerun warns and scans it whole.
-pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.filterwarnings('ignore:RRD file has no footer')]
+# One worker runs the three stacks in turn, with one browser (pytest -n: --dist loadgroup).
+pytestmark = [pytest.mark.ros, pytest.mark.slow, pytest.mark.filterwarnings('ignore:RRD file has no footer'),
+              pytest.mark.xdist_group('browser')]
 
 
 @pytest.fixture(scope='module')
