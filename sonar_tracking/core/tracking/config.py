@@ -93,6 +93,12 @@ class ExistenceConfig(Config):
                                       'from where its existence first exceeded confirm: static echoes (frozen '
                                       'speckle, a rock) are never confirmed; 0 = off (not in the paper)', unit='m',
                                       low=0.0, high=1e6)
+    decorrelation_time: float = setting(0.0, 'scans closer together than this are not independent evidence: the '
+                                        'existence update (eq. 40) takes the likelihood ratio of eq. (33) to the '
+                                        'power dt / decorrelation_time (at most 1), so the frames of a second weigh as '
+                                        '1 / decorrelation_time independent scans at any frame rate (frozen speckle, '
+                                        'a target\'s fading); 0 = every scan independent, as the paper takes them (not '
+                                        'in the paper)', unit='s', low=0.0, high=1e6)
 
     def validate(self) -> None:
         if not self.terminate < self.initial:

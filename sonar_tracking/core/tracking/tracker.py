@@ -38,6 +38,18 @@ each pair found over the whole scan's clusters (one scalar per pair), then each 
 by the same IPDA update with the pair's clutter density divided by its factor. Exact clusters have
 at most ``association.max_cluster`` tracks, so the extra work per scan stays bounded.
 
+Evidence of correlated scans (``existence.decorrelation_time`` tau > 0, not in the paper). Eq. (40)
+takes every scan as independent evidence: its clutter a fresh Poisson draw, its detection of the
+target a fresh Bernoulli one. An imaging sonar at 10-40 frames a second repeats much of one draw
+over several frames: speckle of a still scene is frozen (the same peak crosses the threshold frame
+after frame), and a target's aspect, and with it whether it is detected, changes over a fraction of
+a second, so misses come in runs. Counted frame by frame (P_D 0.8 at 20 frames a second), a peak
+seen in three frames makes a track almost certain, and a target missed for 0.4 s almost certainly
+gone. With tau, a scan ``dt`` after the previous one enters the existence update with the likelihood ratio of eq. (33) raised to
+``min(1, dt / tau)``: the frames of one second weigh as ``1 / tau`` independent scans whatever the
+frame rate (for scans tau or more apart, as the paper's scanning sonar, nothing changes). Only the
+existence is weighted; the state, mode and association updates are those of the paper.
+
 Coverage (optional, not in the paper): ``step(..., coverage=...)`` takes the polar window the
 scan covered (:class:`~sonar_tracking.core.tracking.coverage.Coverage`); a track whose estimate
 has stayed outside the windows of successive scans for ``track.outside_time`` seconds ends
@@ -47,7 +59,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import cast
 
 import numpy as np
@@ -72,7 +84,7 @@ from sonar_tracking.core.tracking.management import (
     renew_tracks,
     unused_measurements,
 )
-from sonar_tracking.core.tracking.markov import mode_transition_matrix, predict_existence
+from sonar_tracking.core.tracking.markov import mode_transition_matrix, predict_existence, update_existence
 from sonar_tracking.core.tracking.measurements import Rejection, as_measurements, check_measurements
 from sonar_tracking.core.tracking.motion import ConstantTurn, ConstantVelocity, MotionModel
 from sonar_tracking.core.tracking.noise import white_noise_acceleration
@@ -340,12 +352,15 @@ class ImmIpdaTracker:
                 n_tracks = len(self._ids)
                 search = BoxSearch(lo, hi, z)
             bounds = _chunk_bounds(counts, _CHUNK_PAIRS)
+        # existence.decorrelation_time: the share of a full scan's evidence this scan carries.
+        tau = cfg.existence.decorrelation_time
+        weight = min(1.0, dt / tau) if tau > 0 else 1.0
         r = gated = None
         if cfg.association.method == 'jipda':
             r, gated = self._association(mu_pred, e_pred, track_side, search, z, meas_side, rho, bounds, lo, hi, rep)
         if len(bounds) == 2:   # one group: the search that counted the pairs finds them
             res, pt, pm = self._update_chunk(x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho, r,
-                                             gated)
+                                             gated, weight)
             self._x, self._P, self._mu, self._exist = res.x, res.P, res.mu, res.existence
         else:
             self._x, self._P = np.empty_like(x_pred), np.empty_like(P_pred)
@@ -358,7 +373,7 @@ class ImmIpdaTracker:
                 xp, Pp, mp, ep, ts = (np.ascontiguousarray(v[..., a:b])
                                       for v in (x_pred, P_pred, mu_pred, e_pred, track_side))
                 res, pt, pm = self._update_chunk(xp, Pp, mp, ep, ts, BoxSearch(lo[a:b], hi[a:b], z), z, meas_side, rho,
-                                                 r_chunk)
+                                                 r_chunk, weight=weight)
                 done += len(pt)
                 self._x[..., a:b], self._P[..., a:b], self._mu[:, a:b] = res.x, res.P, res.mu
                 self._exist[a:b] = res.existence
@@ -374,16 +389,20 @@ class ImmIpdaTracker:
         return gate_pairs(track_side, meas_side, pt, pm, self.gamma)                  # eqs. (25)-(26)
 
     def _update_chunk(self, x_pred, P_pred, mu_pred, e_pred, track_side, search, z, meas_side, rho, r=None,
-                      gated=None):
+                      gated=None, weight=1.0):
         """Gate and update a contiguous group of tracks (eqs. 25-40); pairs indexed within the group.
 
         ``r``: JIPDA factors of the group's pairs (the first ones are used), dividing their clutter
-        density; ``gated``: the group's validated pairs when already gated."""
+        density; ``gated``: the group's validated pairs when already gated; ``weight`` < 1: the
+        existence update (eq. 40) takes the likelihood ratio of eq. (33) to this power
+        (``existence.decorrelation_time``)."""
         cfg = self.config
         pt, pm, innov, in_gate = gated if gated is not None else self._gate_chunk(track_side, search, meas_side)
         rho_pairs = rho[pm] if r is None else rho[pm] / r[:len(pm)]
         res = ipda_update(x_pred, P_pred, mu_pred, e_pred, pt, innov, in_gate, rho_pairs,
                           cfg.detection.probability, cfg.detection.gate_probability)  # eqs. (28)-(40)
+        if weight < 1.0:
+            res = replace(res, existence=update_existence(e_pred, np.power(res.lam, weight)))
         return res, pt, pm
 
     def _association(self, mu_pred, e_pred, track_side, search, z, meas_side, rho, bounds, lo, hi, rep):
