@@ -45,10 +45,11 @@ over several frames: speckle of a still scene is frozen (the same peak crosses t
 after frame), and a target's aspect, and with it whether it is detected, changes over a fraction of
 a second, so misses come in runs. Counted frame by frame (P_D 0.8 at 20 frames a second), a peak
 seen in three frames makes a track almost certain, and a target missed for 0.4 s almost certainly
-gone. With tau, a scan ``dt`` after the previous one enters the existence update with the
-likelihood ratio of eq. (33) raised to ``min(1, dt / tau)``: the frames of one second weigh as ``1 / tau`` independent scans whatever the
-frame rate (for scans tau or more apart, as the paper's scanning sonar, nothing changes). Only the
-existence is weighted; the state, mode and association updates are those of the paper.
+gone. With tau, a scan ``dt`` after the previous one enters the existence update with the likelihood
+ratio of eq. (33) raised to ``min(1, dt / tau)``: the frames of one second weigh as ``1 / tau``
+independent scans whatever the frame rate (for scans tau or more apart, as the paper's scanning
+sonar, nothing changes). Only the existence is weighted; the state, mode and association updates are
+those of the paper.
 
 Coverage (optional, not in the paper): ``step(..., coverage=...)`` takes the polar window the
 scan covered (:class:`~sonar_tracking.core.tracking.coverage.Coverage`); a track whose estimate
