@@ -70,8 +70,9 @@ def test_replay_waits_while_a_node_says_starting(tmp_path, ros):
                                 preexec_fn=process.child_dies_with_parent())
     try:
         say('starting')
-        # A node that never takes input: the replay gives up at --wait-timeout and says which.
-        proc = replay('--wait-timeout', '1')
+        # A node that never takes input: the replay gives up at --wait-timeout and says which (5 s:
+        # the replay must discover the subscriber first, which took over 1 s on a loaded machine).
+        proc = replay('--wait-timeout', '5')
         _, err = proc.communicate(timeout=60)
         assert proc.returncode == 1 and f'still not taking input at the end of --wait-timeout: {me} (starting)' in err
         assert got == []
