@@ -76,7 +76,7 @@ T_GRID = (0.95, 0.99, 0.995)
 #: and 30 cm, which join fish 1 m apart.
 FISH = (('cells.target_size', 0.3), ('cells.merge_beams', 4), ('cells.merge_bins', 4))
 #: The seeds the preset values were tried on while they were built (docs/experiments): never evaluation seeds.
-TUNED_ON = (1, 3, 5)
+TUNED_ON = (1, 3, 5, 501, 701, 801)   # 501 (calibration), 701, 801: the diver's confirmation rules
 _OFF = (('esc.enabled', False), ('structure.enabled', False), ('threshold.minimum', 1.0))
 
 

@@ -90,8 +90,9 @@ class ExistenceConfig(Config):
     terminate: float = setting(0.01, 'a track is terminated when its existence falls below this (not in the paper)',
                                low=0.0, high=1.0, high_open=True)
     confirm_distance: float = setting(0.0, 'a track is confirmed only once its estimate has also moved this far '
-                                      'from where its existence first exceeded confirm: static echoes (frozen '
-                                      'speckle, a rock) are never confirmed; 0 = off (not in the paper)', unit='m',
+                                      'from where its existence first exceeded confirm (taken again after its '
+                                      'existence fell below 1/2): static echoes (frozen speckle, a rock) are never '
+                                      'confirmed; 0 = off (not in the paper)', unit='m',
                                       low=0.0, high=1e6)
     decorrelation_time: float = setting(0.0, 'scans closer together than this are not independent evidence: the '
                                         'existence update (eq. 40) takes the likelihood ratio of eq. (33) to the '
