@@ -10,6 +10,15 @@ of ``jobs`` processes; ``RunPool(jobs, cluster='tcp://HOST:PORT')`` sends them t
 scheduler at that address, ``cluster='local'`` to a ``LocalCluster`` of ``jobs`` worker processes
 started for the pool. Dask (``pip install -r requirements-cluster.txt``) is imported only then.
 
+With a checkpoint directory (``RunPool(jobs, checkpoint=DIR)``, ``--checkpoint DIR``) each finished
+run is kept in ``DIR`` as soon as it ends, and a run already there is read back instead of run
+again: a long study stopped part-way (a session that ends, a killed job) goes on where it stopped
+when the same command runs again, and its results are the same bits. A run's file is named by a
+hash of the run function, its item, its seed and a fingerprint of the code that computes it (the
+package's sources without their docstrings and comments, its ``config/`` files, the Python, numpy
+and scipy versions): after any change of these the run is computed afresh. An unreadable file is
+logged and the run computed again.
+
 Local worker processes start with the glibc allocator settings of
 :mod:`sonar_tracking.process` (glibc reads them only at process start): when this process
 does not already run with them, the workers come from a ``forkserver`` started with them instead
@@ -17,13 +26,19 @@ of being forked from this process.
 """
 from __future__ import annotations
 
+import ast
+import functools
+import hashlib
+import logging
 import multiprocessing
 import multiprocessing.forkserver
 import os
+import pickle
 import sys
 import time
 from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -31,7 +46,10 @@ import numpy as np
 from sonar_tracking.process import allocator_applied, allocator_env
 
 __all__ = ['run_seeds', 'run_monte_carlo', 'Progress', 'default_jobs', 'RunPool', 'ClusterUnavailable',
-           'add_pool_arguments', 'pool_from_args']
+           'Checkpoint', 'code_fingerprint', 'add_pool_arguments', 'pool_from_args']
+
+_log = logging.getLogger(__name__)
+_MISSING = object()
 
 
 def run_seeds(seed: int, n_runs: int) -> list[np.random.SeedSequence]:
@@ -79,6 +97,79 @@ def _call(args: tuple) -> Any:
     return fn(item, seed)
 
 
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """A hash of what a run's result depends on besides its item and seed: the code of every ``.py``
+    file of the package, every file of its ``config/`` directory, and the Python, numpy and scipy
+    versions."""
+    import scipy
+
+    from sonar_tracking.resources import config_dirs
+    h = hashlib.sha256(f'{sys.version_info[:2]} {np.__version__} {scipy.__version__}'.encode())
+    package = Path(__file__).resolve().parent.parent
+    for f in sorted(package.rglob('*.py')):
+        h.update(str(f.relative_to(package)).encode() + _code_of(f))
+    for config in [d for d in config_dirs() if (d / 'sensors').is_dir()][:1]:
+        for f in sorted(config.rglob('*')):
+            if f.is_file():
+                h.update(str(f.relative_to(config)).encode() + f.read_bytes())
+    return h.hexdigest()
+
+
+def _code_of(path: Path) -> bytes:
+    """A Python file's syntax tree without docstrings (comments and layout are not in it): editing
+    the words about the code leaves the fingerprint as it is."""
+    source = path.read_bytes()
+    try:
+        tree = ast.parse(source)
+    except SyntaxError:
+        return source
+    for node in ast.walk(tree):
+        body = getattr(node, 'body', None)
+        if (isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and body
+                and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant)
+                and isinstance(body[0].value.value, str)):
+            body[0] = ast.Pass()
+    return ast.dump(tree).encode()
+
+
+class Checkpoint:
+    """Finished runs kept in a directory, one file each (module docstring)."""
+
+    def __init__(self, directory: str | Path) -> None:
+        self.directory = Path(directory)
+        self.directory.mkdir(parents=True, exist_ok=True)
+        self.reused = self.stored = 0
+
+    def key(self, fn: Callable, item: Any, seed: np.random.SeedSequence) -> str:
+        """The file name of run ``fn(item, seed)`` under the current code."""
+        what = (fn.__module__, fn.__qualname__, item, seed.entropy, tuple(seed.spawn_key), seed.pool_size)
+        return hashlib.sha256(pickle.dumps(what, protocol=4) + code_fingerprint().encode()).hexdigest()[:40]
+
+    def get(self, key: str) -> Any:
+        """The kept result of ``key``, or ``_MISSING`` (also, logged, when its file cannot be read)."""
+        path = self.directory / f'{key}.pkl'
+        if not path.is_file():
+            return _MISSING
+        try:
+            with open(path, 'rb') as f:
+                result = pickle.load(f)
+        except Exception as exc:  # a truncated or foreign file: run again
+            _log.warning('checkpoint %s unreadable (%s: %s); running it again', path, type(exc).__name__, exc)
+            return _MISSING
+        self.reused += 1
+        return result
+
+    def put(self, key: str, result: Any) -> None:
+        """Keep ``result`` under ``key`` (written to a temporary file, then renamed: never half a file)."""
+        path = self.directory / f'{key}.pkl'
+        tmp = path.with_name(f'{path.name}.{os.getpid()}.tmp')
+        with open(tmp, 'wb') as f:
+            pickle.dump(result, f, protocol=4)
+        os.replace(tmp, path)
+        self.stored += 1
+
+
 class ClusterUnavailable(RuntimeError):
     """A Dask cluster was asked for but Dask is not installed or the scheduler cannot be reached."""
 
@@ -90,10 +181,11 @@ class RunPool:
     one per candidate) without starting processes or a local cluster again.
     """
 
-    def __init__(self, jobs: int = 1, cluster: str | None = None) -> None:
+    def __init__(self, jobs: int = 1, cluster: str | None = None, checkpoint: str | Path | None = None) -> None:
         if jobs < 1:
             raise ValueError(f'jobs must be >= 1, not {jobs}')
         self.jobs, self.cluster = int(jobs), cluster or None
+        self.checkpoint = Checkpoint(checkpoint) if checkpoint else None
         self._executor: ProcessPoolExecutor | None = None
         self._client = self._local = None
 
@@ -106,12 +198,18 @@ class RunPool:
         self.close()
 
     def describe(self) -> str:
-        """For the summary line: 'N processes' or the cluster and its worker count."""
+        """For the summary line: 'N processes' or the cluster and its worker count, and how many runs
+        the checkpoint gave back."""
         if not self.cluster:
-            return f'{self.jobs} processes'
-        workers = len(self._client.scheduler_info().get('workers', {})) if self._client else 0
-        where = 'a local Dask cluster' if self.cluster == 'local' else f'the Dask cluster {self.cluster}'
-        return f'{where} ({workers} workers)'
+            where = f'{self.jobs} processes'
+        else:
+            workers = len(self._client.scheduler_info().get('workers', {})) if self._client else 0
+            where = 'a local Dask cluster' if self.cluster == 'local' else f'the Dask cluster {self.cluster}'
+            where = f'{where} ({workers} workers)'
+        if self.checkpoint is not None:
+            c = self.checkpoint
+            where += f'; {c.reused} runs read back from {c.directory}, {c.stored} run and kept there'
+        return where
 
     def _connect(self) -> None:
         try:
@@ -135,18 +233,49 @@ class RunPool:
 
         ``fn`` must be a module-level function of an installed package: workers import it by name."""
         seeds = list(seeds)
-        tasks: Sequence[tuple] = [(fn, item, s) for s in seeds]
+        if self.checkpoint is None:
+            return self._map([(fn, item, s) for s in seeds], progress)
+        cp = self.checkpoint
+        keys = [cp.key(fn, item, s) for s in seeds]
+        out = [cp.get(k) for k in keys]
+        todo = [i for i, r in enumerate(out) if r is _MISSING]
+        if progress and len(todo) < len(seeds):
+            progress.update(len(seeds) - len(todo))
+
+        def keep(j: int, result: Any) -> None:
+            cp.put(keys[todo[j]], result)
+
+        for j, result in enumerate(self._map([(fn, item, seeds[i]) for i in todo], progress, keep)):
+            out[todo[j]] = result
+        return out
+
+    def _map(self, tasks: Sequence[tuple], progress: Progress | None,
+             done: Callable[[int, Any], None] | None = None) -> list:
+        """The results of ``tasks`` in their order; ``done(j, result)`` as each task ends (any order)."""
         if self.cluster:
-            return self._map_cluster(tasks, progress)
+            return self._map_cluster(tasks, progress, done)
         if self.jobs <= 1 or len(tasks) <= 1:
             out = []
-            for t in tasks:
+            for j, t in enumerate(tasks):
                 out.append(_call(t))
+                if done:
+                    done(j, out[-1])
                 if progress:
                     progress.update()
             return out
         if self._executor is None:
             self._executor = _process_pool(self.jobs)
+        if done is not None:
+            # One task at a time, kept as it ends: a stopped study loses at most the runs under way.
+            futures = {self._executor.submit(_call, t): j for j, t in enumerate(tasks)}
+            results: list[Any] = [None] * len(tasks)
+            for fut in as_completed(futures):
+                j = futures[fut]
+                results[j] = fut.result()
+                done(j, results[j])
+                if progress:
+                    progress.update()
+            return results
         out = []
         for result in self._executor.map(_call, tasks, chunksize=max(1, len(tasks) // (8 * self.jobs))):
             out.append(result)
@@ -154,12 +283,16 @@ class RunPool:
                 progress.update()
         return out
 
-    def _map_cluster(self, tasks: Sequence[tuple], progress: Progress | None) -> list:
-        from distributed import as_completed
+    def _map_cluster(self, tasks: Sequence[tuple], progress: Progress | None,
+                     done: Callable[[int, Any], None] | None = None) -> list:
+        from distributed import as_completed as completed
         if self._client is None:
             self._connect()
         futures = self._client.map(_call, tasks, pure=False)
-        for _ in as_completed(futures):
+        index = {f.key: j for j, f in enumerate(futures)}
+        for fut in completed(futures):
+            if done:
+                done(index[fut.key], fut.result())
             if progress:
                 progress.update()
         return self._client.gather(futures)  # run order, whatever order they finished in
@@ -212,8 +345,12 @@ def add_pool_arguments(parser: Any) -> None:
     parser.add_argument('--cluster', default=None, metavar='tcp://HOST:PORT|local',
                         help='run the runs on the Dask scheduler at this address, or on a local Dask cluster of '
                         '--jobs workers; results are those of --jobs (needs requirements-cluster.txt)')
+    parser.add_argument('--checkpoint', default=None, metavar='DIR',
+                        help='keep every finished run in DIR and read it back when the same command runs again '
+                        '(a stopped study goes on where it stopped; a change of the code, the settings or the '
+                        'seeds runs afresh)')
 
 
 def pool_from_args(args: Any) -> RunPool:
-    """The :class:`RunPool` of parsed ``--jobs`` / ``--cluster`` (not yet entered)."""
-    return RunPool(args.jobs, getattr(args, 'cluster', None))
+    """The :class:`RunPool` of parsed ``--jobs`` / ``--cluster`` / ``--checkpoint`` (not yet entered)."""
+    return RunPool(args.jobs, getattr(args, 'cluster', None), getattr(args, 'checkpoint', None))

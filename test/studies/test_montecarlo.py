@@ -67,3 +67,82 @@ def test_without_dask_the_error_says_how_to_install(monkeypatch, capsys):
 def test_bad_jobs_are_refused():
     with pytest.raises(ValueError, match='jobs must be >= 1'):
         RunPool(0)
+
+
+# -- checkpoints -------------------------------------------------------------------------------------
+
+CALLS: list[int] = []
+
+
+def counted(item, seed):
+    """run_once, counted (jobs=1 runs it in this process)."""
+    CALLS.append(1)
+    return run_once(item, seed)
+
+
+def test_a_checkpoint_gives_back_finished_runs_without_running_them_again(tmp_path):
+    CALLS.clear()
+    with RunPool(1, checkpoint=tmp_path) as pool:
+        first = run_monte_carlo(counted, STUDY, 3, seed=9, pool=pool)
+    assert len(CALLS) == 3 and len(list(tmp_path.glob('*.pkl'))) == 3
+    with RunPool(1, checkpoint=tmp_path) as pool:
+        again = run_monte_carlo(counted, STUDY, 3, seed=9, pool=pool)
+        assert pool.checkpoint.reused == 3 and pool.checkpoint.stored == 0
+        assert '3 runs read back' in pool.describe()
+    assert len(CALLS) == 3 and same(first, again)
+    assert same(first, run_monte_carlo(run_once, STUDY, 3, seed=9))
+
+
+def test_a_stopped_study_goes_on_where_it_stopped_over_processes(tmp_path):
+    with RunPool(2, checkpoint=tmp_path) as pool:
+        run_monte_carlo(run_once, STUDY, 2, seed=5, pool=pool)     # the first two runs of four, then stopped
+    with RunPool(2, checkpoint=tmp_path) as pool:
+        resumed = run_monte_carlo(run_once, STUDY, 4, seed=5, pool=pool)
+        assert (pool.checkpoint.reused, pool.checkpoint.stored) == (2, 2)
+    assert same(resumed, run_monte_carlo(run_once, STUDY, 4, seed=5))
+
+
+def test_other_settings_seeds_or_code_run_afresh(tmp_path, monkeypatch):
+    from sonar_tracking.studies import montecarlo
+    CALLS.clear()
+    with RunPool(1, checkpoint=tmp_path) as pool:
+        run_monte_carlo(counted, STUDY, 2, seed=9, pool=pool)
+        run_monte_carlo(counted, StudyConfig(scans=7, methods=STUDY.methods), 2, seed=9, pool=pool)
+        run_monte_carlo(counted, STUDY, 2, seed=10, pool=pool)
+        assert len(CALLS) == 6 and pool.checkpoint.reused == 0
+        monkeypatch.setattr(montecarlo, 'code_fingerprint', lambda: 'other code')
+        run_monte_carlo(counted, STUDY, 2, seed=9, pool=pool)
+        assert len(CALLS) == 8 and pool.checkpoint.reused == 0
+
+
+def test_an_unreadable_checkpoint_file_is_logged_and_the_run_done_again(tmp_path, caplog):
+    with RunPool(1, checkpoint=tmp_path) as pool:
+        first = run_monte_carlo(run_once, STUDY, 2, seed=9, pool=pool)
+    victim = sorted(tmp_path.glob('*.pkl'))[0]
+    victim.write_bytes(victim.read_bytes()[:20])                     # a file cut short
+    with caplog.at_level('WARNING'), RunPool(1, checkpoint=tmp_path) as pool:
+        again = run_monte_carlo(run_once, STUDY, 2, seed=9, pool=pool)
+        assert (pool.checkpoint.reused, pool.checkpoint.stored) == (1, 1)
+    assert same(first, again)
+    assert any('unreadable' in r.getMessage() and victim.name in r.getMessage() for r in caplog.records)
+
+
+def test_the_study_command_with_a_checkpoint_gives_the_same_json_again(tmp_path, capsys):
+    args = ['scenario1', '--runs', '2', '--scans', '6', '--seed', '3', '--methods', 'esc,fixed:4', '--jobs', '1',
+            '--checkpoint', str(tmp_path / 'cp')]
+    assert main([*args, '--json', str(tmp_path / 'a.json')]) == 0
+    assert main([*args, '--json', str(tmp_path / 'b.json')]) == 0
+    assert '2 runs read back' in capsys.readouterr().out
+    a, b = (json.loads((tmp_path / f).read_text()) for f in ('a.json', 'b.json'))
+    assert strip(a) == strip(b)
+
+
+def test_the_fingerprint_ignores_docstrings_and_comments_but_not_code(tmp_path):
+    from sonar_tracking.studies.montecarlo import _code_of
+    files = {'a': '"""Module."""\ndef f(x):\n    """Twice x."""\n    return 2 * x  # doubled\n',
+             'b': '"""Module, reworded."""\ndef f(x):\n    """x times two."""\n\n    return 2 * x\n',
+             'c': '"""Module."""\ndef f(x):\n    """Twice x."""\n    return 3 * x  # doubled\n'}
+    for name, text in files.items():
+        (tmp_path / f'{name}.py').write_text(text)
+    a, b, c = (_code_of(tmp_path / f'{n}.py') for n in 'abc')
+    assert a == b and a != c
