@@ -81,11 +81,14 @@ _OFF = (('esc.enabled', False), ('structure.enabled', False), ('threshold.minimu
 
 
 class Sizes:
-    """Runs and frames of each part (the defaults: the committed full run; the suite passes smaller)."""
+    """The simulated head, and the runs and frames of each part (the defaults: the committed full run;
+    the suite passes smaller)."""
 
     def __init__(self, runs: int, calibration_runs: int, roc_runs: int | None = None, esc_runs: int | None = None,
                  static_frames: int = STATIC_FRAMES, diver_frames: int = 0, school_frames: int = 0,
-                 scale: int = REDUCED, static_scale: int = 1, esc_frames: int = ESC_SCORED[1]) -> None:
+                 scale: int = REDUCED, static_scale: int = 1, esc_frames: int = ESC_SCORED[1],
+                 sensor: str = SENSOR) -> None:
+        self.sensor = sensor
         self.runs, self.calibration_runs = runs, calibration_runs
         self.roc_runs = roc_runs or runs
         self.esc_runs = esc_runs or runs
@@ -115,14 +118,14 @@ def _roc(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
     rows = []
     for method in CFAR_METHODS:
         for pfa in PFA_GRID:
-            run = ImagingRun('imaging_diver', SENSOR, sizes.scale, ROC_FRAMES, start=-1.0,
+            run = ImagingRun('imaging_diver', sizes.sensor, sizes.scale, ROC_FRAMES, start=-1.0,
                              detector=_OFF + (('threshold.method', method), ('cfar.pfa', pfa)))
             runs = _runs(run, split.evaluation[:1], sizes.roc_runs, pool, progress)
             det = [r['detector'] for rs in runs.values() for r in rs]
             rows.append({'method': method, 'pfa': pfa, 'pd': _mean_ci([d['pd'] for d in det]),
                          'false_per_frame': _mean_ci([d['false_per_frame'] for d in det]), 'runs': len(det)})
     for seed_db in SEED_DB_GRID:
-        run = ImagingRun('imaging_diver', SENSOR, sizes.scale, ROC_FRAMES, start=-1.0, methods=(), path='regions',
+        run = ImagingRun('imaging_diver', sizes.sensor, sizes.scale, ROC_FRAMES, start=-1.0, methods=(), path='regions',
                          fls=(('structure.enabled', False), ('segment.seed_db', seed_db),
                               ('segment.grow_db', min(REGION_GROW_DB, seed_db))))
         runs = _runs(run, split.evaluation[:1], sizes.roc_runs, pool, progress)
@@ -133,7 +136,7 @@ def _roc(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
 
 
 def _esc(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
-    base = ImagingRun('imaging_empty', SENSOR, 1, sizes.esc_frames, sim=ESC_WINDOW, platform_speed=ESC_SPEED,
+    base = ImagingRun('imaging_empty', sizes.sensor, 1, sizes.esc_frames, sim=ESC_WINDOW, platform_speed=ESC_SPEED,
                       series=True, detector=(('structure.enabled', False), ('esc.exclude_radius', 0.0)))
     # Calibration: the density ESC measures at the design scale on Rayleigh frames.
     cal = _runs(replace(base, frames=ESC_SWITCH, detector=base.detector + (('esc.enabled', False),)),
@@ -157,9 +160,9 @@ def _esc(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
 
 
 def _static(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
-    run = ImagingRun('imaging_empty', SENSOR, sizes.static_scale, sizes.static_frames)
+    run = ImagingRun('imaging_empty', sizes.sensor, sizes.static_scale, sizes.static_frames)
     runs = _runs(run, split.evaluation, 1, pool, progress)
-    per = {s: {'confirmed_tracks': rs[0]['ipda']['false_tracks'], 'minutes': rs[0]['detector']['frames'] / 20.0 / 60.0,
+    per = {s: {'confirmed_tracks': rs[0]['ipda']['false_tracks'], 'minutes': rs[0]['ipda']['hours'] * 60.0,
                'false_per_frame': rs[0]['detector']['false_per_frame'], 'final_scale': rs[0]['detector']['final_scale']}
            for s, rs in runs.items()}
     return {'scale': sizes.static_scale, 'frames': sizes.static_frames, 'sets': per}
@@ -179,7 +182,7 @@ def _tracking_summary(rs: list[dict], method: str) -> dict:
 
 
 def _diver(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
-    base = ImagingRun('imaging_diver', SENSOR, sizes.scale, sizes.diver_frames)
+    base = ImagingRun('imaging_diver', sizes.sensor, sizes.scale, sizes.diver_frames)
     calibration = []
     for rho in RHO_GRID:
         run = replace(base, detector=(('esc.desired_clutter_density', rho),))
@@ -200,7 +203,7 @@ def _diver(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
 
 def _school(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
     methods = ('ipda', 'jipda')
-    base = ImagingRun('imaging_school', SENSOR, sizes.scale, sizes.school_frames, methods=methods, detector=FISH)
+    base = ImagingRun('imaging_school', sizes.sensor, sizes.scale, sizes.school_frames, methods=methods, detector=FISH)
     costs: dict[str, list[float]] = {m: [] for m in methods}
     for t_c in T_GRID:
         run = replace(base, confirm=tuple((m, t_c) for m in methods))
@@ -234,7 +237,7 @@ def run_table(split: SeedSplit, sizes: Sizes, parts=PARTS, pool: RunPool | None 
               progress: bool | None = None) -> dict:
     """Every part of ``parts`` (module docstring); JSON-ready."""
     prog = None
-    out: dict[str, Any] = {'sensor': SENSOR, 'seeds': split.describe(), 'sizes': sizes.describe(),
+    out: dict[str, Any] = {'sensor': sizes.sensor, 'seeds': split.describe(), 'sizes': sizes.describe(),
                            'gospa': GOSPA.describe(), 'gate': GATE, 'clearance': CLEARANCE, 'parts': list(parts)}
     for part in parts:
         out[part] = _PART_FUNCS[part](split, sizes, pool, prog)
@@ -263,7 +266,8 @@ def format_table(result: dict) -> str:
     lines: list[str] = []
     seeds = result['seeds']
     g = result['gospa']
-    lines.append(f'Calibration seeds {", ".join(map(str, seeds["calibration"]))}; evaluation seeds '
+    lines.append(f'Head {result.get("sensor", SENSOR)}. Calibration seeds {", ".join(map(str, seeds["calibration"]))}; '
+                 f'evaluation seeds '
                  f'{" / ".join(map(str, seeds["evaluation"]))}. Intervals: 95 % t intervals over runs. GOSPA c = '
                  f'{g["c"]:g} m, p = {g["p"]:g}, alpha = {g["alpha"]:g}; tracked within {result["gate"]:g} m; a '
                  f'confirmed track never within {result["clearance"]:g} m of a target is false.')

@@ -18,7 +18,7 @@ def test_the_front_end_is_the_preset_file_and_reduced_frames_divide_the_cell_cou
     full, trk = front_end('oculus_m750d')
     half, _ = front_end('oculus_m750d', 2)
     assert full.threshold.method == 'ca' and full.intensity.coding == 'db'
-    assert trk.existence.confirm_distance == 1.0 and full.cells.target_size == 1.8
+    assert trk.existence.confirm_distance == 2.0 and full.cells.target_size == 1.8
     assert (full.cfar.stride_beams, full.cfar.reach_beams) == (4, 24)
     assert (half.cfar.stride_beams, half.cfar.reach_beams, half.cells.merge_bins) == (2, 12, 5)
     # The training reach still passes the guard by a stride, so CFAR has training cells.
@@ -83,8 +83,21 @@ def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
         assert heading in text
 
 
+def test_another_head_runs_with_its_own_preset_and_frame_rate(monkeypatch):
+    from sonar_tracking.studies import imaging_table
+    monkeypatch.setattr(imaging_table, 'RHO_GRID', (5e-4,))
+    sizes = imaging_table.Sizes(runs=1, calibration_runs=1, static_frames=150, diver_frames=60, scale=2,
+                                static_scale=2, sensor='aris3000')
+    result = imaging_table.run_table(SeedSplit((11,), (21, 22)), sizes, parts=('static', 'diver'))
+    assert result['sensor'] == 'aris3000'
+    assert all(v['minutes'] == pytest.approx(150 / 15.0 / 60.0) for v in result['static']['sets'].values())
+    assert result['diver']['read_back']['equal']
+    assert imaging_table.format_table(result).startswith('Head aris3000.')
+
+
 @pytest.mark.parametrize('argv', [['--parts', 'roc,foo'], ['--parts', 'esc,esc'], ['--seeds', '501,601'],
-                                  ['--seeds', '601,602', '--scale', '0']])
+                                  ['--seeds', '601,602', '--scale', '0'],
+                                  ['--sensor', 'aris3000', '--parts', 'diver,school']])
 def test_sonar_eval_imaging_refuses_bad_arguments_before_running(argv, capsys):
     from sonar_tracking.cli import sonar_eval
     assert sonar_eval.main(['imaging', *argv]) == 2
