@@ -48,7 +48,7 @@ from sonar_tracking.studies.evidence import (
     read_back,
 )
 from sonar_tracking.studies.imaging_study import CLEARANCE, GATE, GOSPA, ImagingRun, poisson_upper, run_once
-from sonar_tracking.studies.montecarlo import RunPool, run_monte_carlo
+from sonar_tracking.studies.montecarlo import RunPool, run_seeds
 
 __all__ = ['PARTS', 'PFA_GRID', 'CFAR_METHODS', 'RHO_GRID', 'T_GRID', 'REDUCED', 'TUNED_ON', 'run_table',
            'format_table', 'Sizes', 'with_comparisons']
@@ -100,7 +100,10 @@ class Sizes:
 
 
 def _runs(run: ImagingRun, seeds, n: int, pool: RunPool | None, progress=None) -> dict[str, list]:
-    return {str(s): run_monte_carlo(run_once, run, n, s, pool=pool, progress=progress) for s in seeds}
+    """``n`` runs per seed set, all sets in one batch (the runs of both sets share the processes)."""
+    seqs = [q for s in seeds for q in run_seeds(s, n)]
+    out = pool.map(run_once, run, seqs, progress) if pool is not None else RunPool(1).map(run_once, run, seqs)
+    return {str(s): out[i * n:(i + 1) * n] for i, s in enumerate(seeds)}
 
 
 def _mean_ci(values) -> dict:

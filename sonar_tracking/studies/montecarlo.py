@@ -15,9 +15,10 @@ run is kept in ``DIR`` as soon as it ends, and a run already there is read back 
 again: a long study stopped part-way (a session that ends, a killed job) goes on where it stopped
 when the same command runs again, and its results are the same bits. A run's file is named by a
 hash of the run function, its item, its seed and a fingerprint of the code that computes it (the
-package's sources without their docstrings and comments, its ``config/`` files, the Python, numpy
-and scipy versions): after any change of these the run is computed afresh. An unreadable file is
-logged and the run computed again.
+run function's module and the package's sources but its command-line tools and ROS nodes, without
+docstrings and comments; its ``config/`` files; the Python, numpy and scipy versions): after any
+change of these the run is computed afresh. An unreadable file is logged and the run computed
+again.
 
 Local worker processes start with the glibc allocator settings of
 :mod:`sonar_tracking.process` (glibc reads them only at process start): when this process
@@ -29,6 +30,7 @@ from __future__ import annotations
 import ast
 import functools
 import hashlib
+import importlib.util
 import logging
 import multiprocessing
 import multiprocessing.forkserver
@@ -97,23 +99,37 @@ def _call(args: tuple) -> Any:
     return fn(item, seed)
 
 
+# The package's command-line tools, ROS nodes and their helpers: no run computes in them (the run
+# function's own module counts wherever it is).
+_FRONT_ENDS = ('cli', 'nodes', 'ros')
+
+
 @functools.lru_cache(maxsize=1)
 def code_fingerprint() -> str:
-    """A hash of what a run's result depends on besides its item and seed: the code of every ``.py``
-    file of the package, every file of its ``config/`` directory, and the Python, numpy and scipy
-    versions."""
+    """A hash of what a run's result depends on besides its item, its seed and its function's module:
+    the code of every ``.py`` file of the package but its front ends (``cli``, ``nodes``, ``ros``),
+    every file of its ``config/`` directory, and the Python, numpy and scipy versions."""
     import scipy
 
     from sonar_tracking.resources import config_dirs
     h = hashlib.sha256(f'{sys.version_info[:2]} {np.__version__} {scipy.__version__}'.encode())
     package = Path(__file__).resolve().parent.parent
     for f in sorted(package.rglob('*.py')):
-        h.update(str(f.relative_to(package)).encode() + _code_of(f))
+        if f.relative_to(package).parts[0] not in _FRONT_ENDS:
+            h.update(str(f.relative_to(package)).encode() + _code_of(f))
     for config in [d for d in config_dirs() if (d / 'sensors').is_dir()][:1]:
         for f in sorted(config.rglob('*')):
             if f.is_file():
                 h.update(str(f.relative_to(config)).encode() + f.read_bytes())
     return h.hexdigest()
+
+
+@functools.cache
+def _module_code(name: str) -> bytes:
+    """The code of module ``name``'s source file (empty when it has none)."""
+    spec = importlib.util.find_spec(name)
+    origin = spec.origin if spec is not None else None
+    return _code_of(Path(origin)) if origin and origin.endswith('.py') else b''
 
 
 def _code_of(path: Path) -> bytes:
@@ -144,7 +160,8 @@ class Checkpoint:
     def key(self, fn: Callable, item: Any, seed: np.random.SeedSequence) -> str:
         """The file name of run ``fn(item, seed)`` under the current code."""
         what = (fn.__module__, fn.__qualname__, item, seed.entropy, tuple(seed.spawn_key), seed.pool_size)
-        return hashlib.sha256(pickle.dumps(what, protocol=4) + code_fingerprint().encode()).hexdigest()[:40]
+        return hashlib.sha256(pickle.dumps(what, protocol=4) + code_fingerprint().encode()
+                              + _module_code(fn.__module__)).hexdigest()[:40]
 
     def get(self, key: str) -> Any:
         """The kept result of ``key``, or ``_MISSING`` (also, logged, when its file cannot be read)."""
