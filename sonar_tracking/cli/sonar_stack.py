@@ -33,7 +33,8 @@ SIGTERM from the kernel if the stack itself dies (Linux ``PR_SET_PDEATHSIG``), s
 behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none),
 started first; nodes with ``wait_for`` then also wait for the recorder to listen. ``--view``
 likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`` passes it options),
-logging every record message of the whole run (``--always --qos reliable``); when the pipeline ends
+logging every record message of the whole run (``--always --qos reliable``), and runs the stack's
+simulators in real time (``rate`` 1) unless ``--set`` gives their rate; when the pipeline ends
 by itself, the stack stops its nodes but keeps the view serving the run to a browser until Ctrl-C
 or SIGTERM (which during the run stop the view with the rest).
 
@@ -301,6 +302,18 @@ def apply_settings(config: StackConfig, settings: list[str]) -> None:
         except yaml.YAMLError as exc:
             raise StackError(f'--set {text!r}: the value is not YAML: {exc}') from None
         nodes[node].parameters[param] = _number(parsed)
+
+
+def real_time_for_view(config: StackConfig, settings: list[str]) -> list[str]:
+    """``--view``: every simulator of the stack (``seaking_sim``) whose rate ``settings`` do not set
+    runs in real time (``rate`` 1), so that a browser keeps up with the run; returns their names."""
+    given = {text.partition('=')[0].strip() for text in settings}
+    names = []
+    for spec in config.nodes:
+        if spec.executable == 'seaking_sim' and f'{spec.name}.rate' not in given:
+            spec.parameters['rate'] = 1.0
+            names.append(spec.name)
+    return names
 
 
 def sensor_presets() -> dict[str, Path]:
@@ -706,6 +719,7 @@ def main(argv: list[str] | None = None) -> int:
         config = load_stack(path)
         if args.preset is not None:
             apply_preset(config, args.preset)
+        live = real_time_for_view(config, args.set) if args.view is not None else []
         apply_settings(config, args.set)
         if namespace is not None:
             move(config, namespace)
@@ -727,6 +741,9 @@ def main(argv: list[str] | None = None) -> int:
         from sonar_tracking.cli.sonar_view import MISSING
         print(f'error: {MISSING}', file=sys.stderr)
         return 2
+    for name in live:
+        print(f'[sonar_stack] --view: {name} runs in real time (rate 1), as the sensor would, so that the page keeps '
+              f'up; --set {name}.rate=0 runs it at full speed', flush=True)
     return run(config, args.record, view=args.view)
 
 

@@ -16,7 +16,10 @@ taken is an error. The address to open is printed as ``view: http://...``.
 
 What reaches the browser is bounded, since a browser without GPU renders slowly: the recording is
 sent in batches every ``--batch`` seconds (default 1; the browser's work grows with the number of
-messages it is sent more than with their size: ``sonar_eval bench view.browser``), and the sonar
+messages it is sent more than with their size: ``sonar_eval bench view.browser``), the messages of
+each record topic (detections, tracks, truth, regions, the plotted scalars) at most once per
+``--record-period`` of stamp time (default 0.2 s; the newest of a shorter interval is held and logged
+only if nothing newer follows within that time, so the end of a run is always there), and the sonar
 images at most once per ``--fan-period`` (default 1 s) of stamp time and of wall-clock time.
 
 A live view logs only while a viewer is connected to its server (:func:`viewer_connected`,
@@ -65,6 +68,9 @@ MISSING = ('sonar_view needs the view extra (Rerun, ~170 MB): run `make view` '
 # a hundred scans a second while a busy view logs slower, and a message that leaves a keep-last
 # queue is a hole in the run. 1000 bounds the memory to a few MB per topic.
 RECORD_DEPTH = 1000
+# A headless browser without GPU keeps up with the records of about five scans a second
+# (``sonar_eval bench view.browser_rates``).
+RECORD_PERIOD = 0.2
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -84,6 +90,10 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--fan-px', type=int, default=768, help='longer side of the fan image (default 768 px)')
     p.add_argument('--fan-period', type=float, default=1.0,
                    help='seconds between sonar images, of stamp time and (live) of wall-clock time (default 1)')
+    p.add_argument('--record-period', type=float, default=RECORD_PERIOD,
+                   help='seconds of stamp time between two logged messages of one record topic (detections, '
+                   f'tracks, truth, regions, plots; default {RECORD_PERIOD:g}: a 20 Hz imaging sonar logged at 5 Hz, '
+                   'so that a browser without GPU keeps up); 0 logs every message')
     p.add_argument('--batch', type=float, default=1.0,
                    help='seconds of logging sent to the browser at once (default 1)')
     p.add_argument('--coding', default='linear_amplitude',
@@ -146,7 +156,8 @@ def main(argv: list[str] | None = None) -> int:
         try:
             scene = SceneLogger(rec, fan_px=args.fan_px, fan_period=args.fan_period, coding=args.coding,
                                 sonar_pose=tuple(args.sonar_pose), tail=args.tail, arrow_seconds=args.arrow_seconds,
-                                clock=None if args.bag is not None else time.monotonic)
+                                clock=None if args.bag is not None else time.monotonic,
+                                record_period=args.record_period)
         except ValueError as exc:
             print(f'error: {exc}', file=sys.stderr)
             return 2
@@ -213,6 +224,8 @@ def _summary(scene) -> str:
     text = ', '.join(f'{t} {n}' for t, n in sorted(scene.counts.items())) or 'no messages'
     for topic, n in sorted(scene.errors.items()):
         text += f'; {n} dropped on {topic} (last: {scene.last_error[topic]})'
+    if scene.held:
+        text += f'; {scene.held} records left out for newer ones (--record-period {scene.record_period:g} s)'
     return text
 
 

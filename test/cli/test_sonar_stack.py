@@ -466,3 +466,17 @@ def test_the_nodes_with_a_status_are_the_processing_nodes():
                 assert f"super().__init__('{exe}'" in inspect.getsource(classes[0]), exe
                 found.add(exe)
     assert found == STATUS_EXECUTABLES
+
+
+def test_a_stack_with_a_view_runs_its_simulator_in_real_time_unless_told_otherwise(capsys):
+    """``--view``: the simulator runs as the sensor would (rate 1), so that the page keeps up; a rate
+    given with ``--set`` stays, and without ``--view`` the stack file's rate (full speed) stays."""
+    from sonar_tracking.cli.sonar_stack import main
+
+    def sim_line(*args: str) -> str:
+        assert main(['harbour', '--dry-run', *args]) == 0
+        return next(line for line in capsys.readouterr().out.splitlines() if 'seaking_sim' in line
+                    and not line.startswith('#'))
+    assert 'rate:=1.0' in sim_line('--view')
+    assert 'rate:=0.0' in sim_line()
+    assert 'rate:=4' in sim_line('--view', '--set', 'seaking_sim.rate=4')

@@ -246,6 +246,40 @@ def test_sonar_images_at_most_once_per_period_of_stamp_and_clock_time(tmp_path, 
     assert [t for t, _ in cols['/sector/polar']['EncodedImage:blob']] == [0, 9 * 10**9]
 
 
+def test_records_at_most_once_per_record_period_and_the_last_always(tmp_path, rosbags_types):
+    # Scans 1 s apart, a period of 1.5 s: 10 s logged, 11 held then left out for 12, 12 logged, 13 left
+    # out, 14 logged, 15 held and logged at the end of the run.
+    path = tmp_path / 'thin.rrd'
+    scene = log_scans(path, rosbags_types, 6, record_period=1.5)
+    cols = rrd_columns(path)
+    for entity in ('/map/detections', '/map/tracks/confirmed/points', '/map/truth/points', '/map/regions',
+                   '/map/gpf/confirmed/points'):
+        assert [t for t, _ in cols[entity]['Points2D:positions']] == [0, 2 * 10**9, 4 * 10**9, 5 * 10**9], entity
+    assert [v[0] for _, v in cols['/plots/threshold']['Scalars:scalars']] == pytest.approx([3.0, 3.2, 3.4, 3.5])
+    assert len(cols['/map/fan']['EncodedImage:blob']) == 6  # the images keep their own period (0 here)
+    from sonar_tracking.cli.view import RECORD_TOPICS
+    records = {t for t, _ in scan_messages(rosbags_types, 0)} & RECORD_TOPICS
+    assert scene.held == 2 * len(records) and scene.counts['tracks'] == 4
+
+
+def test_a_held_record_is_logged_once_its_topic_went_quiet_for_a_period(tmp_path, rosbags_types):
+    from sonar_tracking.cli.view.scene import SceneLogger
+    rec = rr.RecordingStream('test_quiet')
+    rec.set_sinks(rr.FileSink(str(tmp_path / 'quiet.rrd')))
+    now = [100.0]
+    scene = SceneLogger(rec, fan_px=64, record_period=1.5, clock=lambda: now[0])
+    tracks = [[m for t, m in scan_messages(rosbags_types, k) if t == 'tracks'][0] for k in range(2)]
+    assert scene.handle('tracks', tracks[0]) and scene.handle('tracks', tracks[1])
+    assert scene.counts['tracks'] == 1           # the second (1 s later in stamp time) is held
+    now[0] += 1.0
+    scene.flush_images()
+    assert scene.counts['tracks'] == 1           # not yet a period of the clock without a newer one
+    now[0] += 0.6
+    scene.flush_images()
+    assert scene.counts['tracks'] == 2 and scene.held == 0
+    rec.disconnect()
+
+
 def test_bad_messages_are_dropped_and_counted(tmp_path, rosbags_types):
     from sonar_tracking.cli.view.scene import SceneLogger
     rec = rr.RecordingStream('test_bad')

@@ -133,8 +133,10 @@ def times(cols: dict, entity: str) -> list[int]:
 
 def test_the_harbour_stack_shows_its_whole_run_with_panels_legend_and_details(browser, tmp_path):
     from sonar_tracking.cli.view.scene import PANELS
+    # --view runs the simulator in real time: 30 scans of the scenario, 30 s.
     page, names, saved, saved_names, scans, shot = run_in_browser(browser, 'harbour', tmp_path,
-                                                                  '/map/tracks/confirmed/points')
+                                                                  '/map/tracks/confirmed/points',
+                                                                  ('--set', 'seaking_sim.duration=30'))
     # The whole run, in the page and in the file: one row of tracks and of truth per scan, on a
     # timeline of seconds since the start (scan k at k seconds; not 1970).
     whole = [k * 10**9 for k in range(scans)]
@@ -164,8 +166,10 @@ def test_the_harbour_stack_shows_its_whole_run_with_panels_legend_and_details(br
 
 def test_the_fls_stack_has_its_own_layout_and_region_ids_leave_track_ids_visible(browser, tmp_path):
     from sonar_tracking.cli.view.scene import PANELS
+    # At full speed (the stack file's rate, over --view's real time): the page catches up after the run.
     page, names, saved, saved_names, scans, shot = run_in_browser(browser, 'fls', tmp_path,
-                                                                  '/map/gpf/confirmed/points')
+                                                                  '/map/gpf/confirmed/points',
+                                                                  ('--set', 'seaking_sim.rate=0'))
     # No ESC panels for a stack without the ESC detector.
     assert set(names) == set(saved_names) == {PANELS[k] for k in ('map', 'legend', 'polar', 'confirmed', 'counts')}
     assert times(page, '/map/truth/points') == times(saved, '/map/truth/points')

@@ -5,7 +5,7 @@ Rerun entities; :mod:`sonar_tracking.cli.sonar_view` feeds it from live topics o
 serves the recording. Rerun is an extra (``requirements-view.txt``), never needed by the nodes.
 """
 
-__all__ = ['TOPICS', 'IMAGE_TOPICS']
+__all__ = ['TOPICS', 'IMAGE_TOPICS', 'RECORD_TOPICS']
 
 #: Relative topic name -> ROS message type, every topic the view understands.
 TOPICS: dict[str, str] = {
@@ -24,3 +24,5 @@ TOPICS: dict[str, str] = {
 }
 #: The large ones: a live view takes them best effort (it may skip some, never slows a publisher).
 IMAGE_TOPICS = frozenset({'sonar/sector', 'sonar/sector_info', 'fls/image', 'fls/image_info'})
+#: The per-scan records and the plotted scalars, which ``--record-period`` thins.
+RECORD_TOPICS = frozenset(set(TOPICS) - IMAGE_TOPICS - {'platform/odometry'})

@@ -50,12 +50,12 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 import sonar_tracking.msgs as ma
-from sonar_tracking.cli.view import IMAGE_TOPICS, TOPICS
+from sonar_tracking.cli.view import IMAGE_TOPICS, RECORD_TOPICS, TOPICS
 from sonar_tracking.core.fan import PolarCanvas, fan_extent, to_mono8
 from sonar_tracking.core.intensity import CODINGS, decode
 from sonar_tracking.msgs.map_info import fls_image, map_info_to_grid
 
-__all__ = ['TOPICS', 'IMAGE_TOPICS', 'SceneLogger', 'PolarScan', 'blueprint', 'TIMELINE', 'PANELS',
+__all__ = ['TOPICS', 'IMAGE_TOPICS', 'RECORD_TOPICS', 'SceneLogger', 'PolarScan', 'blueprint', 'TIMELINE', 'PANELS',
            'grid_spacing']  # topics re-exported from the package
 
 #: The timeline everything is logged on: seconds since the first stamp the view logged.
@@ -221,6 +221,10 @@ class SceneLogger:
     rec : the recording to log to.
     fan_px : longer side of the world-frame fan image [px].
     fan_period : shortest interval between two logged sonar images [s of stamp time, and of ``clock``].
+    record_period : shortest interval between two logged messages of one record topic (detections,
+        tracks, truth, regions, the plotted scalars) [s of stamp time]; the newest message of a
+        shorter interval is held and logged only if no later one came (:meth:`flush_images`,
+        :meth:`finish`); 0 logs every message.
     coding : how sector values code the echo (:data:`sonar_tracking.core.intensity.CODINGS`).
     dynamic_range_db : grey scale of the fan, polar and FLS images above their median [dB].
     sonar_pose : ``(x, y, yaw)`` of the sonar in the world when no odometry arrives.
@@ -234,11 +238,17 @@ class SceneLogger:
                  coding: str = 'linear_amplitude', dynamic_range_db: float = 30.0,
                  sonar_pose: tuple[float, float, float] = (0.0, 0.0, 0.0), tail: int = 40,
                  arrow_seconds: float = 10.0, n_sigma: float = 2.0,
-                 clock: Callable[[], float] | None = None) -> None:
+                 clock: Callable[[], float] | None = None, record_period: float = 0.0) -> None:
         if coding not in CODINGS:
             raise ValueError(f'coding {coding!r} is not one of {CODINGS}')
-        if fan_px < 16 or tail < 1 or not (n_sigma > 0 and arrow_seconds >= 0 and fan_period >= 0):
-            raise ValueError('need fan_px >= 16, tail >= 1, n_sigma > 0, arrow_seconds >= 0, fan_period >= 0')
+        if fan_px < 16 or tail < 1 or not (n_sigma > 0 and arrow_seconds >= 0 and fan_period >= 0
+                                           and record_period >= 0):
+            raise ValueError('need fan_px >= 16, tail >= 1, n_sigma > 0, arrow_seconds >= 0, fan_period >= 0, '
+                             'record_period >= 0')
+        self.record_period = float(record_period)
+        self.held = 0                                   # record messages left out for a newer one
+        self._held: dict[str, tuple[Any, float | None]] = {}
+        self._record_ns: dict[str, int] = {}
         self.rec = rec
         self.fan_px, self.fan_period, self.coding = int(fan_px), float(fan_period), coding
         self.dynamic_range_db = float(dynamic_range_db)
@@ -281,10 +291,26 @@ class SceneLogger:
         self._log_styles()
 
     def handle(self, topic: str, msg: Any) -> bool:
-        """Log one message of a relative topic name; False (and counted in ``errors``) if it was dropped."""
+        """Log one message of a relative topic name (or hold it, see ``record_period``); False (and
+        counted in ``errors``) if it was dropped."""
         handler = self._handlers.get(topic)
         if handler is None:
             return False
+        if self.record_period > 0 and topic in RECORD_TOPICS:
+            stamp_ns = self._record_stamp(msg)
+            last = self._record_ns.get(topic)
+            if stamp_ns is not None and last is not None and 0 <= stamp_ns - last < self.record_period * 1e9:
+                if topic in self._held:
+                    self.held += 1
+                self._held[topic] = (msg, self.clock() if self.clock is not None else None)
+                return True
+            if self._held.pop(topic, None) is not None:
+                self.held += 1
+            if stamp_ns is not None:
+                self._record_ns[topic] = stamp_ns
+        return self._log(topic, handler, msg)
+
+    def _log(self, topic: str, handler: Callable[[Any], None], msg: Any) -> bool:
         try:
             handler(msg)
         except (ma.AdapterError, ValueError, TypeError, AttributeError, IndexError) as exc:
@@ -294,15 +320,34 @@ class SceneLogger:
         self.counts[topic] = self.counts.get(topic, 0) + 1
         return True
 
+    def _record_stamp(self, msg: Any) -> int | None:
+        # Records carry a header; the plotted scalars (std_msgs) take the latest record's stamp.
+        try:
+            return ma.header_ns(msg)
+        except (AttributeError, TypeError, ValueError):
+            return self._stamp_ns
+
+    def _flush_held(self, everything: bool) -> None:
+        # A held message whose topic went quiet for a period (of ``clock``; at the end, any) is the newest.
+        now = self.clock() if self.clock is not None else None
+        for topic, (msg, since) in list(self._held.items()):
+            if everything or (now is not None and since is not None and now - since >= self.record_period):
+                del self._held[topic]
+                self._log(topic, self._handlers[topic], msg)
+
     def finish(self) -> None:
-        """Paint the sectors still waiting for odometry and log the latest sonar images (end of a run)."""
+        """Paint the sectors still waiting for odometry, log the held records and the latest sonar
+        images (end of a run)."""
         self._flush_sectors(everything=True)
+        self._flush_held(everything=True)
         if self._painted_ns is not None:
             self._log_images(self._painted_ns, force=True)
 
     def flush_images(self) -> bool:
-        """Log the latest sonar images if some were held back and ``fan_period`` has passed since the
-        last ones (call it periodically in a live view); True if it logged."""
+        """Log records held for a ``record_period`` of ``clock`` with nothing newer, and the latest
+        sonar images if some were held back and ``fan_period`` has passed since the last ones (call it
+        periodically in a live view); True if it logged images."""
+        self._flush_held(everything=False)
         if self._painted_ns is None or not self._period_over(self._painted_ns):
             return False
         self._log_images(self._painted_ns, force=True)
