@@ -33,8 +33,9 @@ SIGTERM from the kernel if the stack itself dies (Linux ``PR_SET_PDEATHSIG``), s
 behind. ``--record DIR`` also runs ``bag_record`` on the ``record`` topics (all topics if none),
 started first; nodes with ``wait_for`` then also wait for the recorder to listen. ``--view``
 likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`` passes it options),
-logging every record message of the whole run (``--always --qos reliable``), and runs the stack's
-simulators in real time (``rate`` 1) unless ``--set`` gives their rate; when the pipeline ends
+logging every record message of the whole run (``--always --qos reliable``), and runs a simulator
+that the stack file runs at full speed in real time (``rate`` 1) instead, unless ``--set`` gives its
+rate; when the pipeline ends
 by itself, the stack stops its nodes but keeps the view serving the run to a browser until Ctrl-C
 or SIGTERM (which during the run stop the view with the rest).
 
@@ -305,12 +306,14 @@ def apply_settings(config: StackConfig, settings: list[str]) -> None:
 
 
 def real_time_for_view(config: StackConfig, settings: list[str]) -> list[str]:
-    """``--view``: every simulator of the stack (``seaking_sim``) whose rate ``settings`` do not set
-    runs in real time (``rate`` 1), so that a browser keeps up with the run; returns their names."""
+    """``--view``: every simulator of the stack (``seaking_sim``) that its file runs at full speed
+    (``rate`` 0) and whose rate ``settings`` do not set runs in real time (``rate`` 1) instead, so
+    that a browser keeps up with the run; returns their names."""
     given = {text.partition('=')[0].strip() for text in settings}
     names = []
     for spec in config.nodes:
-        if spec.executable == 'seaking_sim' and f'{spec.name}.rate' not in given:
+        if (spec.executable == 'seaking_sim' and f'{spec.name}.rate' not in given
+                and spec.parameters.get('rate') in (0, 0.0)):
             spec.parameters['rate'] = 1.0
             names.append(spec.name)
     return names

@@ -469,14 +469,16 @@ def test_the_nodes_with_a_status_are_the_processing_nodes():
 
 
 def test_a_stack_with_a_view_runs_its_simulator_in_real_time_unless_told_otherwise(capsys):
-    """``--view``: the simulator runs as the sensor would (rate 1), so that the page keeps up; a rate
-    given with ``--set`` stays, and without ``--view`` the stack file's rate (full speed) stays."""
+    """``--view``: a simulator the stack runs at full speed runs as the sensor would (rate 1), so that
+    the page keeps up; a rate given with ``--set`` or a stack file's own rate stays, and without
+    ``--view`` the file's rate (full speed) stays."""
     from sonar_tracking.cli.sonar_stack import main
 
-    def sim_line(*args: str) -> str:
-        assert main(['harbour', '--dry-run', *args]) == 0
+    def sim_line(*args: str, stack: str = 'harbour') -> str:
+        assert main([stack, '--dry-run', *args]) == 0
         return next(line for line in capsys.readouterr().out.splitlines() if 'seaking_sim' in line
                     and not line.startswith('#'))
     assert 'rate:=1.0' in sim_line('--view')
     assert 'rate:=0.0' in sim_line()
     assert 'rate:=4' in sim_line('--view', '--set', 'seaking_sim.rate=4')
+    assert 'rate:=0.5' in sim_line('--view', stack='imaging')    # half real time: the frames cost CPU

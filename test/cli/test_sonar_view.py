@@ -280,6 +280,38 @@ def test_a_held_record_is_logged_once_its_topic_went_quiet_for_a_period(tmp_path
     rec.disconnect()
 
 
+def test_frames_over_the_same_cells_are_painted_only_when_a_picture_is_due(tmp_path, rosbags_types):
+    from dataclasses import replace
+
+    from sonar_tracking.cli.view.scene import SceneLogger
+
+    def sectors(scene, k: int, geom) -> None:
+        stamp = (10 + k) * 10**9
+        amp = np.full((100, 61), 0.1 + k, np.float32)
+        for topic, msg in (('sonar/sector', ma.array_to_image(amp, stamp_ns=stamp, types=rosbags_types)),
+                           ('sonar/sector_info', ma.geometry_to_scan(geom, stamp_ns=stamp, types=rosbags_types)),
+                           ('platform/odometry', ma.pose_to_odometry(*SONAR, stamp_ns=stamp, frame_id='world',
+                                                                    types=rosbags_types))):
+            assert scene.handle(topic, msg)
+
+    rec = rr.RecordingStream('test_frames')
+    rec.set_sinks(rr.FileSink(str(tmp_path / 'frames.rrd')))
+    # An imaging sonar: every frame over the same cells, 1 s apart, a picture every 2 s.
+    frames = SceneLogger(rec, fan_px=64, fan_period=2.0)
+    for k in range(5):
+        sectors(frames, k, geometry())
+    frames.finish()
+    assert frames.frames_skipped == 2 and frames.images_logged == 3   # 11 s and 13 s never painted
+    assert np.nanmax(frames._canvas.image) == pytest.approx(4.1)   # the last frame is the picture
+    # A scanning sonar: each sector another part of the fan, every one painted.
+    sweep = SceneLogger(rec, fan_px=64, fan_period=2.0)
+    for k in range(5):
+        sectors(sweep, k, replace(geometry(), angle_min=-0.3 + 0.61 * (k % 2)))
+    sweep.finish()
+    assert sweep.frames_skipped == 0
+    rec.disconnect()
+
+
 def test_bad_messages_are_dropped_and_counted(tmp_path, rosbags_types):
     from sonar_tracking.cli.view.scene import SceneLogger
     rec = rr.RecordingStream('test_bad')

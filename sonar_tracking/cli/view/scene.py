@@ -270,6 +270,10 @@ class SceneLogger:
         self._bounds: tuple[float, float, float, float] | None = None
         self._polar = PolarScan()
         self._painted_ns: int | None = None   # stamp of the latest sector painted but not yet logged
+        # The latest sector not painted yet, with its pose: a later one over the same cells (the next
+        # frame of an imaging sonar) replaces it unpainted.
+        self._unpainted: tuple[int, np.ndarray, Any, tuple[float, ...]] | None = None
+        self.frames_skipped = 0
         self._image_ns: int | None = None     # stamp and clock time of the latest logged images
         self._image_wall: float | None = None
         self._fls = ma.StampPairer(('image', 'info'), max_pending=4)
@@ -339,6 +343,7 @@ class SceneLogger:
         """Paint the sectors still waiting for odometry, log the held records and the latest sonar
         images (end of a run)."""
         self._flush_sectors(everything=True)
+        self._paint_unpainted()
         self._flush_held(everything=True)
         if self._painted_ns is not None:
             self._log_images(self._painted_ns, force=True)
@@ -348,10 +353,12 @@ class SceneLogger:
         sonar images if some were held back and ``fan_period`` has passed since the last ones (call it
         periodically in a live view); True if it logged images."""
         self._flush_held(everything=False)
-        if self._painted_ns is None or not self._period_over(self._painted_ns):
-            return False
-        self._log_images(self._painted_ns, force=True)
-        return True
+        logged = self.images_logged
+        if self._unpainted is not None and self._period_over(self._unpainted[0]):
+            self._paint_unpainted()                      # logs the images itself
+        if self._painted_ns is not None and self._period_over(self._painted_ns):
+            self._log_images(self._painted_ns, force=True)
+        return self.images_logged > logged
 
     # -- time, layout and styles -----------------------------------------------------------------
 
@@ -419,12 +426,26 @@ class SceneLogger:
         while self._pending and (everything or self._pending[0][0] <= self._odom_ns
                                  or len(self._pending) > _PENDING_SECTORS):
             stamp_ns, values, geometry = self._pending.popleft()
-            self._paint(stamp_ns, values, geometry)
+            held = self._unpainted
+            if held is not None:
+                if held[2] == geometry:
+                    self.frames_skipped += 1     # the same cells again: the older frame is never seen
+                else:
+                    self._paint(*held)           # another part of the fan (a scanning sonar): keep it
+            self._unpainted = (stamp_ns, values, geometry, self._pose)
+            self._stamp_ns = stamp_ns if self._stamp_ns is None else max(self._stamp_ns, stamp_ns)
+            if self._period_over(stamp_ns):
+                self._paint_unpainted()
 
-    def _paint(self, stamp_ns: int, values: np.ndarray, geometry: Any) -> None:
+    def _paint_unpainted(self) -> None:
+        if self._unpainted is not None:
+            held, self._unpainted = self._unpainted, None
+            self._paint(*held)
+
+    def _paint(self, stamp_ns: int, values: np.ndarray, geometry: Any, pose: tuple[float, ...]) -> None:
         self._seen('sector')
         x0, x1, y0, y1 = fan_extent(geometry)
-        px, py, yaw = self._pose
+        px, py, yaw = pose
         c, s = math.cos(yaw), math.sin(yaw)
         corners = np.array([[x0, y0], [x0, y1], [x1, y0], [x1, y1]])
         wx, wy = px + corners @ np.array([c, -s]), py + corners @ np.array([s, c])
@@ -443,7 +464,7 @@ class SceneLogger:
             self.rec.log('map/fan', rr.Transform3D(translation=[box[0], -box[3], 0.0], scale=cv.resolution))
             self._log_grid(box)
             self.rec.send_blueprint(blueprint(box, frozenset(self.present)))  # the map starts on the sonar's picture
-        cv.paint(values, geometry, self._pose)
+        cv.paint(values, geometry, pose)
         if self._polar.paint(values, geometry):
             self._at(stamp_ns)
             positions, labels = self._polar.ticks()
