@@ -34,7 +34,8 @@ For each sector (one scan of the harbour sonar):
 5. each detection gets its clutter density by SCMDE (:mod:`.scmde`) over the sector window. When
    ``max_detections`` cut some, the strongest detections are not a Poisson sample of the scan, so
    every detection gets the count estimate instead: all detections found / window area (the SCMDE
-   module's own fallback, unbiased for Poisson counts);
+   module's own fallback, unbiased for Poisson counts). With ``scmde.uniform_over = cells`` the
+   clutter is uniform over range and bearing (a CFAR's false alarms), per m^2 falling as 1/range;
 6. the ESC (:mod:`.esc`) takes the scan's density -- the mean SCMDE density over the whole
    sector, or (``esc.density_source = best_track``, Scenario 2) the density around the confirmed
    track with the highest existence probability -- and sets the threshold of the next scan; with
@@ -71,7 +72,7 @@ from sonar_tracking.core.detection.cells import CellDetections, threshold_cells
 from sonar_tracking.core.detection.cfar import CFAR_METHODS, Cfar, CfarConfig
 from sonar_tracking.core.detection.conversion import convert_measurements
 from sonar_tracking.core.detection.esc import ERROR_LAWS, ExtremumSeekingController
-from sonar_tracking.core.detection.scmde import PolarWindow, scmde, sunflower
+from sonar_tracking.core.detection.scmde import PolarWindow, cell_count_density, scmde, scmde_cells, sunflower
 from sonar_tracking.core.intensity import IntensityConfig, condition, zero_floor
 from sonar_tracking.core.records import DETECTION_DTYPE
 from sonar_tracking.core.sector import GeometryError, SectorError, SectorGeometry, check_sector
@@ -157,6 +158,9 @@ class ScmdeConfig(Config):
 
     order: int = setting(6, 'nearest neighbours that define each detection\'s volume', low=3, high=100)
     edge_correction: bool = setting(True, 'count only the part of each volume inside the sector window')
+    uniform_over: str = setting('area', 'what clutter is uniform over: the sea\'s area (the papers) or the polar '
+                                'image\'s range-bearing cells (a CFAR\'s false alarms: per m^2 falling as 1/range)',
+                                choices=('area', 'cells'))
 
 
 @dataclass(frozen=True)
@@ -374,12 +378,13 @@ class ActiveDetector:
         window = PolarWindow(r_lo, r_hi,
                              geometry.angle_min - geometry.angle_increment / 2,
                              geometry.angle_max + geometry.angle_increment / 2)
+        r_floor = max(window.r_min, 0.5 * dr)
         if cut:
             # The strongest detections are no Poisson sample: the count estimate of every detection.
-            rho = np.full(len(keep), (found - n_structure) / window.area)
+            rho = (cell_count_density(found - n_structure, r, window, r_floor)
+                   if cfg.scmde.uniform_over == 'cells' else np.full(len(keep), (found - n_structure) / window.area))
         else:
-            sensor_xy = np.stack([r * np.cos(b), r * np.sin(b)], axis=-1)
-            rho = scmde(sensor_xy, cfg.scmde.order, window if cfg.scmde.edge_correction else None)
+            rho = self._scmde(r, b, window, r_floor)
         density = self._esc_input(xy, rho, focus_xy, pose, window, tracked_xy)
         self.last_density = density
         self.scans += 1
@@ -396,6 +401,14 @@ class ActiveDetector:
         held = self.warmup.holding(t, cfg.structure)    # ESC and the background learn; nothing goes out
         return ScanResult(rec[:0] if held else rec, tau, density, self.threshold, found=found,
                           structure=n_structure, cut=cut, held=held)
+
+    def _scmde(self, r: np.ndarray, b: np.ndarray, window: PolarWindow, r_floor: float) -> np.ndarray:
+        """Each detection's clutter density by SCMDE, over area or over cells (``scmde.uniform_over``)."""
+        sc = self.config.scmde
+        if sc.uniform_over == 'cells':
+            return scmde_cells(r, b, sc.order, window, r_floor, sc.edge_correction)
+        sensor_xy = np.stack([r * np.cos(b), r * np.sin(b)], axis=-1)
+        return scmde(sensor_xy, sc.order, window if sc.edge_correction else None)
 
     def _time(self, stamp: float | None, geometry: SectorGeometry) -> float:
         """The scan's time for the structure background: the stamp, or the scan count's clock."""

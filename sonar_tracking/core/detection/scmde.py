@@ -16,6 +16,15 @@ disc *inside* the window, measured with a fixed sunflower pattern of points on t
 against the window (a polar sector in the sensor frame). With fewer than ``n + 1`` measurements
 in the window, every measurement gets the count estimate ``M / A`` (unbiased for Poisson counts),
 ``A`` the window area; without a window the order drops to what is available.
+
+Clutter uniform over cells (:func:`scmde_cells`): a CFAR detector holds a false-alarm rate per
+range-bearing cell of the polar image, and a cell's area grows with its range, so its false
+detections are uniform over range and bearing, not over the sea's area: their density per m^2 at
+range ``r`` is a density in ``(r, theta)`` over ``r``. :func:`scmde_cells` estimates each
+measurement's density in ``(r, r_ref theta)`` (a rectangle, ``r_ref`` the window's middle range,
+so that neighbourhoods there are as in metres) with the same estimator and then divides by
+``r / r_ref``. On an imaging sonar's fan (0.3-30 m) the area estimate puts the clutter within 2 m
+of the head 4 to 30 times too low.
 """
 from __future__ import annotations
 
@@ -26,7 +35,7 @@ import numpy as np
 
 from sonar_tracking.core.jit import kernel
 
-__all__ = ['PolarWindow', 'scmde', 'sunflower']
+__all__ = ['PolarWindow', 'RectWindow', 'scmde', 'scmde_cells', 'cell_count_density', 'per_area', 'sunflower']
 
 
 @dataclass(frozen=True)
@@ -76,6 +85,36 @@ class PolarWindow:
         _disc_fraction_into(x, y, radius, DISC if disc is None else np.ascontiguousarray(disc, dtype=float),
                             self.r_min, self.r_max, *self._bearing_test(), out)
         return out
+
+
+@dataclass(frozen=True)
+class RectWindow:
+    """An axis-aligned rectangle ``[x_min, x_max] x [y_min, y_max]``: the window of
+    :func:`scmde_cells`, with :class:`PolarWindow`'s interface."""
+
+    x_min: float
+    x_max: float
+    y_min: float
+    y_max: float
+
+    @property
+    def area(self) -> float:
+        return (self.x_max - self.x_min) * (self.y_max - self.y_min)
+
+    def clearance(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """Each point's distance to the rectangle's border (0 outside)."""
+        d = np.minimum(np.minimum(np.asarray(x) - self.x_min, self.x_max - np.asarray(x)),
+                       np.minimum(np.asarray(y) - self.y_min, self.y_max - np.asarray(y)))
+        return np.clip(d, 0.0, None)
+
+    def disc_fraction(self, x: np.ndarray, y: np.ndarray, radius: np.ndarray, disc: np.ndarray | None = None
+                      ) -> np.ndarray:
+        """As :meth:`PolarWindow.disc_fraction`, for the rectangle."""
+        d = DISC if disc is None else np.asarray(disc, dtype=float)
+        px = np.asarray(x, dtype=float)[:, None] + np.asarray(radius, dtype=float)[:, None] * d[None, :, 0]
+        py = np.asarray(y, dtype=float)[:, None] + np.asarray(radius, dtype=float)[:, None] * d[None, :, 1]
+        inside = (px >= self.x_min) & (px <= self.x_max) & (py >= self.y_min) & (py <= self.y_max)
+        return inside.mean(axis=1)
 
 
 @kernel
@@ -190,7 +229,7 @@ def _nth_neighbour(pts, n, out):
         out[i] = np.sqrt(best[n])
 
 
-def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None) -> np.ndarray:
+def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | RectWindow | None = None) -> np.ndarray:
     """Clutter density [1/m^2] at each of ``points`` ``(N, 2)`` (sensor-frame metres).
 
     ``window`` enables the edge correction and the count fallback; without it, sparse scans
@@ -223,3 +262,34 @@ def scmde(points: np.ndarray, order: int = 6, window: PolarWindow | None = None)
             area[near] *= np.maximum(inside, 1.0 / len(DISC))
     # Coincident points would give a zero area; a floor keeps the estimate finite.
     return (n - 1) / np.maximum(area, 1e-12)
+
+
+def scmde_cells(r: np.ndarray, b: np.ndarray, order: int, window: PolarWindow, r_floor: float,
+                edge_correction: bool = True) -> np.ndarray:
+    """Clutter density [1/m^2] at each measurement at ranges ``r`` and bearings ``b`` (sensor frame,
+    1-D) for clutter uniform over the polar image's cells (module docstring): :func:`scmde` in
+    ``(r, r_ref b)``, over the window's rectangle there when ``edge_correction``, converted by
+    :func:`per_area` (``r_floor > 0``: the nearest range a cell's centre can have)."""
+    r = np.asarray(r, dtype=float)
+    b = np.asarray(b, dtype=float)
+    if r.shape != b.shape or r.ndim != 1:
+        raise ValueError(f'ranges and bearings must be 1-D arrays of one length, got {r.shape} and {b.shape}')
+    r_ref = max(0.5 * (window.r_min + window.r_max), r_floor)
+    mid = 0.5 * (window.b_min + window.b_max)
+    rect = RectWindow(window.r_min, window.r_max, r_ref * (window.b_min - mid), r_ref * (window.b_max - mid))
+    rho = scmde(np.stack([r, r_ref * (b - mid)], axis=-1).reshape(-1, 2), order, rect if edge_correction else None)
+    return per_area(rho * r_ref, r, r_floor)
+
+
+def cell_count_density(count: int, r: np.ndarray, window: PolarWindow, r_floor: float) -> np.ndarray:
+    """The count estimate for clutter uniform over cells: ``count`` points over the window's ranges
+    and bearings, as densities [1/m^2] at ranges ``r`` (:func:`per_area`)."""
+    return per_area(count / ((window.r_max - window.r_min) * (window.b_max - window.b_min)), r, r_floor)
+
+
+def per_area(rho_rb, r: np.ndarray, r_floor: float) -> np.ndarray:
+    """A density over range and bearing [1/(m rad)] as one over area [1/m^2] at ranges ``r``: over
+    ``max(r, r_floor)``, the area element being ``r dr dtheta``."""
+    if not r_floor > 0:
+        raise ValueError(f'r_floor must be > 0, not {r_floor}')
+    return rho_rb / np.maximum(np.asarray(r, dtype=float), r_floor)

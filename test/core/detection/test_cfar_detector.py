@@ -109,3 +109,24 @@ def test_esc_with_a_period_updates_once_every_period_scans_on_their_mean_density
             assert det.threshold == pytest.approx(ref.threshold)
     assert len(set(applied[0:5])) == len(set(applied[5:10])) == len(set(applied[10:15])) == 1
     assert applied[5] != applied[0] and applied[10] != applied[5]
+
+
+@pytest.mark.parametrize('max_detections', [100, 1])
+def test_over_cells_a_detection_near_the_head_gets_the_denser_clutter(max_detections):
+    """Two echoes, at 5 m and 35 m: over area both get the same density (the count over the fan's
+    area); over cells, the near one's is seven times the far one's, also when the strongest are cut."""
+    amplitude = np.ones(GEOMETRY.shape, np.float32)
+    rows = [int(round((r - GEOMETRY.range_min) / GEOMETRY.range_resolution)) for r in (5.0, 35.0)]
+    amplitude[rows[0], 60] = amplitude[rows[1], 180] = 30.0
+    amplitude[rows[1], 180] = 31.0
+    rho = {}
+    for over in ('area', 'cells'):
+        cfg = DetectorConfig.from_flat({**_config('fixed').flat(), 'threshold.initial': 10.0,
+                                        'cells.max_detections': max_detections, 'scmde.uniform_over': over})
+        d = ActiveDetector(cfg).process(amplitude, GEOMETRY, stamp=0.0).detections
+        assert len(d) == min(2, max_detections)
+        rho[over] = dict(zip(np.round(d['range']).astype(int), d['clutter_density']))
+    if max_detections > 1:
+        assert rho['area'][5] == pytest.approx(rho['area'][35])
+        assert rho['cells'][5] / rho['cells'][35] == pytest.approx(35 / 5, rel=0.02)
+    assert rho['cells'][35] < rho['area'][35]
