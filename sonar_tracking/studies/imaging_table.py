@@ -22,8 +22,9 @@ Parts (``--parts``):
   :data:`STATIC_FRAMES` frames: confirmed tracks (all false).
 * ``diver``: ``imaging_diver`` (120 s), reduced frames (:data:`REDUCED`): CTTR, false confirmed
   tracks per hour with its Poisson 95 % upper bound, track breaks, duplicates, GOSPA, P_D. The
-  operating point, rho_D, is chosen on the calibration runs from :data:`RHO_GRID`: the largest mean
-  CTTR among the values with no false confirmed track there (the smallest rho_D if none has none).
+  operating point, rho_D, is chosen on the calibration runs from :func:`rho_grid` (:data:`RHO_FACTORS`
+  times the head's preset value): the largest mean CTTR among the values with no false confirmed track
+  there (the smallest rho_D if none has none).
 * ``school``: ``imaging_school``, reduced frames, IMM-JIPDA against IMM-IPDA on the same detections,
   each tracker at its T_c of least mean GOSPA on the calibration runs (:data:`T_GRID`), the paired
   GOSPA difference with Bonferroni-corrected intervals per evaluation seed set and pooled. The
@@ -47,10 +48,18 @@ from sonar_tracking.studies.evidence import (
     per_run_values,
     read_back,
 )
-from sonar_tracking.studies.imaging_study import CLEARANCE, GATE, GOSPA, ImagingRun, poisson_upper, run_once
+from sonar_tracking.studies.imaging_study import (
+    CLEARANCE,
+    GATE,
+    GOSPA,
+    ImagingRun,
+    front_end,
+    poisson_upper,
+    run_once,
+)
 from sonar_tracking.studies.montecarlo import RunPool, run_seeds
 
-__all__ = ['PARTS', 'PFA_GRID', 'CFAR_METHODS', 'RHO_GRID', 'T_GRID', 'REDUCED', 'TUNED_ON', 'run_table',
+__all__ = ['PARTS', 'PFA_GRID', 'CFAR_METHODS', 'RHO_FACTORS', 'rho_grid', 'T_GRID', 'REDUCED', 'TUNED_ON', 'run_table',
            'format_table', 'Sizes', 'with_comparisons']
 
 PARTS = ('roc', 'esc', 'static', 'diver', 'school')
@@ -69,7 +78,9 @@ ESC_SWITCH = 200
 ESC_SCORED = (400, 500)
 ESC_SPEED = 1.0
 STATIC_FRAMES = 12_000
-RHO_GRID = (2e-4, 5e-4, 2e-3)
+#: The diver's desired densities as factors of the head's preset value (the Oculus's 5e-4 /m^2 gives 2e-4,
+#: 5e-4 and 2e-3): a narrow head's fan is smaller, so its preset asks for more false detections per m^2.
+RHO_FACTORS = (0.4, 1.0, 4.0)
 T_GRID = (0.95, 0.99, 0.995)
 #: What a user watching fish sets over the diver preset: the fish's size, and blobs merged over one beam
 #: width and 12 cm of range (4 beams and 4 bins of the full frame), not over a diver's 3 beam widths
@@ -184,22 +195,31 @@ def _tracking_summary(rs: list[dict], method: str) -> dict:
             'false_per_hour_upper95': poisson_upper(false, hours)}
 
 
+def rho_grid(sensor: str) -> tuple[float, ...]:
+    """The diver part's candidate rho_D of ``sensor`` [1/m^2]: :data:`RHO_FACTORS` times its preset's
+    ``esc.desired_clutter_density``."""
+    preset = front_end(sensor)[0].esc.desired_clutter_density
+    return tuple(float(f * preset) for f in RHO_FACTORS)
+
+
 def _diver(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
     base = ImagingRun('imaging_diver', sizes.sensor, sizes.scale, sizes.diver_frames)
+    grid = rho_grid(sizes.sensor)
     calibration = []
-    for rho in RHO_GRID:
+    for rho in grid:
         run = replace(base, detector=(('esc.desired_clutter_density', rho),))
         rs = [r for v in _runs(run, split.calibration, sizes.calibration_runs, pool, progress).values() for r in v]
         calibration.append({'rho_d': rho, 'cttr': float(np.mean([r['ipda']['cttr'] for r in rs])),
                             'false_tracks': int(sum(r['ipda']['false_tracks'] for r in rs))})
     clean = [c for c in calibration if c['false_tracks'] == 0]
-    chosen = max(clean, key=lambda c: c['cttr'])['rho_d'] if clean else RHO_GRID[0]
+    chosen = max(clean, key=lambda c: c['cttr'])['rho_d'] if clean else grid[0]
     run = replace(base, detector=(('esc.desired_clutter_density', chosen),))
     runs = _runs(run, split.evaluation, sizes.runs, pool, progress)
     held = read_back(chosen, [r['detector']['desired_density'] for rs in runs.values() for r in rs])
     sets = {s: _tracking_summary(rs, 'ipda') for s, rs in runs.items()}
     pooled = _tracking_summary([r for rs in runs.values() for r in rs], 'ipda')
-    return {'scale': sizes.scale, 'frames': sizes.diver_frames or 'scenario (120 s)', 'calibration': calibration,
+    return {'scale': sizes.scale, 'frames': sizes.diver_frames or 'scenario (120 s)', 'rho_factors': list(RHO_FACTORS),
+            'calibration': calibration,
             'rule': 'largest mean CTTR among the rho_D with no false confirmed track on the calibration runs',
             'rho_d': chosen, 'read_back': held, 'sets': sets, 'pooled': pooled}
 

@@ -60,7 +60,7 @@ def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
     monkeypatch.setattr(imaging_table, 'PFA_GRID', (1e-3, 1e-6))
     monkeypatch.setattr(imaging_table, 'CFAR_METHODS', ('ca',))
     monkeypatch.setattr(imaging_table, 'SEED_DB_GRID', (3.0,))
-    monkeypatch.setattr(imaging_table, 'RHO_GRID', (5e-4,))
+    monkeypatch.setattr(imaging_table, 'RHO_FACTORS', (1.0,))
     monkeypatch.setattr(imaging_table, 'T_GRID', (0.99,))
     sizes = imaging_table.Sizes(runs=2, calibration_runs=1, roc_runs=3, esc_runs=2, static_frames=300,
                                 diver_frames=200, school_frames=100, scale=4, static_scale=4, esc_frames=500)
@@ -85,7 +85,7 @@ def test_every_part_runs_reduced_and_shows_what_it_measures(monkeypatch):
 
 def test_another_head_runs_with_its_own_preset_and_frame_rate(monkeypatch):
     from sonar_tracking.studies import imaging_table
-    monkeypatch.setattr(imaging_table, 'RHO_GRID', (5e-4,))
+    monkeypatch.setattr(imaging_table, 'RHO_FACTORS', (1.0,))
     sizes = imaging_table.Sizes(runs=1, calibration_runs=1, static_frames=150, diver_frames=60, scale=2,
                                 static_scale=2, sensor='aris3000')
     result = imaging_table.run_table(SeedSplit((11,), (21, 22)), sizes, parts=('static', 'diver'))
@@ -93,6 +93,13 @@ def test_another_head_runs_with_its_own_preset_and_frame_rate(monkeypatch):
     assert all(v['minutes'] == pytest.approx(150 / 15.0 / 60.0) for v in result['static']['sets'].values())
     assert result['diver']['read_back']['equal']
     assert imaging_table.format_table(result).startswith('Head aris3000.')
+    assert result['diver']['rho_d'] == pytest.approx(1e-2), "the ARIS preset's own rho_D, not the Oculus's"
+
+
+def test_the_diver_grid_is_a_factor_of_each_presets_density():
+    from sonar_tracking.studies import imaging_table
+    assert imaging_table.rho_grid('oculus_m750d') == pytest.approx((2e-4, 5e-4, 2e-3))
+    assert imaging_table.rho_grid('aris3000') == pytest.approx((4e-3, 1e-2, 4e-2))
 
 
 @pytest.mark.parametrize('argv', [['--parts', 'roc,foo'], ['--parts', 'esc,esc'], ['--seeds', '501,601'],
