@@ -14,7 +14,8 @@ Parts (``--parts``):
 * ``esc``: ESC holding the false-detection density when the clutter changes shape: Rayleigh speckle,
   then K (shape 0.5) from frame :data:`ESC_SWITCH`, on a moving platform (fresh speckle each frame),
   structure rejection off, on a window of the head (:data:`ESC_WINDOW`: its beams and bins at the
-  Oculus's spacing). The operating point, the desired density rho_D, is chosen on the calibration
+  Oculus's spacing). ESC's input is the preset's: with no track, the count of the frame's
+  detections over the window's area. The operating point, the desired density rho_D, is chosen on the calibration
   runs: the density ESC measures at the design scale on Rayleigh frames. Scored: the mean density of
   frames :data:`ESC_SCORED` over rho_D, with ESC on (the criterion: within 20 %) and off (by how much
   CA-CFAR exceeds its design rate under K), the two sharing each run's frames.
@@ -151,7 +152,7 @@ def _roc(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
 
 def _esc(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
     base = ImagingRun('imaging_empty', sizes.sensor, 1, sizes.esc_frames, sim=ESC_WINDOW, platform_speed=ESC_SPEED,
-                      series=True, detector=(('structure.enabled', False), ('esc.exclude_radius', 0.0)))
+                      series=True, detector=(('structure.enabled', False),))
     # Calibration: the density ESC measures at the design scale on Rayleigh frames.
     cal = _runs(replace(base, frames=ESC_SWITCH, detector=base.detector + (('esc.enabled', False),)),
                 split.calibration, sizes.calibration_runs, pool, progress)
@@ -263,7 +264,7 @@ def run_table(split: SeedSplit, sizes: Sizes, parts=PARTS, pool: RunPool | None 
     out: dict[str, Any] = {'sensor': sizes.sensor, 'seeds': split.describe(), 'sizes': sizes.describe(),
                            'gospa': GOSPA.describe(), 'gate': GATE, 'clearance': CLEARANCE, 'parts': list(parts)}
     for part in parts:
-        out[part] = _PART_FUNCS[part](split, sizes, pool, prog)
+        out[part] = {**_PART_FUNCS[part](split, sizes, pool, prog), 'seeds': split.describe()}
     return with_comparisons(out)
 
 
@@ -284,8 +285,19 @@ def _ci(d: dict, digits: int = 3) -> str:
     return f'{d["mean"]:.{digits}g} [{d["lo"]:.{digits}g}, {d["hi"]:.{digits}g}]'
 
 
+def _own_seeds(part: dict, seeds: dict) -> str:
+    """For a part run on other seeds than the table's (parts of a table run by separate commands):
+    its seeds, to go into its heading."""
+    own = part.get('seeds')
+    if not own or all(own[k] == seeds[k] for k in ('calibration', 'evaluation')):
+        return ''
+    return (f'; calibration seeds {", ".join(map(str, own["calibration"]))}, evaluation seeds '
+            f'{" / ".join(map(str, own["evaluation"]))}')
+
+
 def format_table(result: dict) -> str:
-    """The docs/results tables (markdown) of :func:`run_table`'s result."""
+    """The docs/results tables (markdown) of :func:`run_table`'s result; a part run on other seeds
+    than the table's names them."""
     lines: list[str] = []
     seeds = result['seeds']
     g = result['gospa']
@@ -319,13 +331,14 @@ def format_table(result: dict) -> str:
     if 'static' in result:
         st = result['static']
         size = 'full frames' if st['scale'] == 1 else f'frames reduced {st["scale"]}x'
-        lines += ['', f'**Static empty scene, frozen speckle** (`imaging_empty`, {size}):', '',
+        lines += ['', f'**Static empty scene, frozen speckle** (`imaging_empty`, {size}{_own_seeds(st, seeds)}):', '',
                   '| seed | minutes | confirmed tracks | false detections / frame |', '|---|---|---|---|']
         for s, v in st['sets'].items():
             lines.append(f'| {s} | {v["minutes"]:.1f} | {v["confirmed_tracks"]} | {v["false_per_frame"]:.3g} |')
     if 'diver' in result:
         d = result['diver']
-        lines += ['', f'**Diver** (`imaging_diver`, frames reduced {d["scale"]}x; rho_D = {d["rho_d"]:g} /m^2 '
+        lines += ['', f'**Diver** (`imaging_diver`, frames reduced {d["scale"]}x{_own_seeds(d, seeds)}; '
+                  f'rho_D = {d["rho_d"]:g} /m^2 '
                   f'chosen on the calibration runs: {d["rule"]}):', '',
                   '| seed set | CTTR | false confirmed tracks (hours) | per hour, 95 % upper bound | breaks / target | '
                   'duplicates | GOSPA [m] | P_D | false detections / frame |', '|---|---|---|---|---|---|---|---|---|']
