@@ -114,7 +114,8 @@ def test_sonar_eval_imaging_refuses_bad_arguments_before_running(argv, capsys):
 def test_a_part_run_on_other_seeds_names_them_in_its_heading():
     from sonar_tracking.studies import imaging_table
     seeds = {'calibration': [501], 'evaluation': [601, 602], 'tuned_on': [1]}
-    static = {'scale': 1, 'frames': 10, 'sets': {'603': {'minutes': 10.0, 'confirmed_tracks': 0, 'false_per_frame': 0.3}}}
+    row = {'minutes': 10.0, 'confirmed_tracks': 0, 'false_per_frame': 0.3}
+    static = {'scale': 1, 'frames': 10, 'sets': {'603': row}}
     result = {'seeds': seeds, 'gospa': {'c': 3.0, 'p': 2.0, 'alpha': 2.0}, 'gate': 1.5, 'clearance': 3.0,
               'static': {**static, 'seeds': {**seeds, 'evaluation': [603, 604], 'tuned_on': [1, 3]}}}
     assert 'evaluation seeds 603 / 604' in imaging_table.format_table(result)
