@@ -220,10 +220,13 @@ raise SystemExit(run_node(factory, []))
 @pytest.mark.parametrize('signals', [[signal.SIGINT], [signal.SIGINT, signal.SIGTERM]])
 def test_a_signal_during_the_build_stops_the_node_once_built_and_a_second_ends_it(signals):
     """One signal while the node is built raises nothing into the build: the build completes, the
-    node never spins and exits 0. A second signal ends the process at once with that signal."""
+    node never spins and exits 0. A second signal ends the process at once with that signal, before
+    the build goes on."""
     proc, out, err = _signalled(BUILD, 'building\n', signals)
     if len(signals) == 1:
         assert proc.returncode == 0 and 'Traceback' not in err, err
         assert 'built' in out and 'spun' not in out, out
     else:
-        assert proc.returncode == -signals[-1], (proc.returncode, err)
+        # Sent back to back, the two may reach the handler in either order: the one handled second ends it.
+        assert proc.returncode in [-s for s in signals], (proc.returncode, err)
+        assert 'built' not in out, out
