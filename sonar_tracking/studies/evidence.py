@@ -63,7 +63,8 @@ import numpy as np
 from sonar_tracking.studies.metrics import GospaResult, gospa
 
 __all__ = ['FAMILY_LEVEL', 'SeedError', 'SeedSplit', 'parse_seeds', 'add_seed_arguments', 'seed_split_from_args',
-           'GospaSpec', 'choose_smallest_meeting', 'choose_minimum', 'grid_edge', 'paper_range', 'read_back',
+           'GospaSpec', 'choose_smallest_meeting', 'choose_minimum', 'choose_smallest_within_one_se',
+           'grid_edge', 'paper_range', 'read_back',
            'Correction', 'paired_interval', 'rank_interval', 'agreement', 'compare', 'AGREEMENT_RULE',
            'format_interval', 'format_comparisons', 'split_line', 'per_run_values']
 
@@ -209,6 +210,31 @@ def choose_minimum(grid: Sequence[float], costs: Sequence[float]) -> dict:
         raise ValueError('no finite cost to choose from')
     j = int(np.nanargmin(np.where(np.isfinite(c), c, np.nan)))
     return {'index': j, 'value': float(g[j]), 'cost': float(c[j])}
+
+
+def choose_smallest_within_one_se(grid: Sequence[float], samples: Sequence[Sequence[float]],
+                                  allowed: Sequence[bool] | None = None) -> dict:
+    """The one-standard-error rule (Breiman et al., *Classification and Regression Trees*, 1984, §3.4.3)
+    for a score to maximise: of the ``allowed`` grid values (``grid`` ascending; all when None), the
+    one of largest mean ``samples`` sets a bar, its mean less its standard error; the smallest allowed
+    value whose mean reaches the bar wins. Differences within the best value's noise then go to the
+    smallest value instead of to chance. No value allowed: the smallest grid value, flagged.
+    JSON-ready: ``index``, ``value``, ``means``, ``ses``, ``bar`` and ``allowed_any``."""
+    g = np.asarray(grid, dtype=float)
+    if g.ndim != 1 or not len(g) or len(samples) != len(g):
+        raise ValueError(f'grid and samples must be of equal length, got {len(g)} and {len(samples)}')
+    ok = np.ones(len(g), bool) if allowed is None else np.asarray(allowed, dtype=bool)
+    arrays = [np.asarray(s, dtype=float) for s in samples]
+    means = np.array([a.mean() if len(a) else math.nan for a in arrays])
+    ses = np.array([a.std(ddof=1) / math.sqrt(len(a)) if len(a) > 1 else math.nan for a in arrays])
+    out = {'means': [float(m) for m in means], 'ses': [float(s) for s in ses]}
+    ok &= np.isfinite(means)
+    if not ok.any():
+        return {'index': 0, 'value': float(g[0]), 'bar': math.nan, 'allowed_any': False, **out}
+    best = int(np.flatnonzero(ok)[np.argmax(means[ok])])
+    bar = float(means[best] - (ses[best] if math.isfinite(ses[best]) else 0.0))
+    j = int(np.flatnonzero(ok & (means >= bar))[0])
+    return {'index': j, 'value': float(g[j]), 'bar': bar, 'allowed_any': True, **out}
 
 
 def grid_edge(index: int, grid: Sequence[float]) -> str | None:

@@ -24,8 +24,8 @@ Parts (``--parts``):
 * ``diver``: ``imaging_diver`` (120 s), reduced frames (:data:`REDUCED`): CTTR, false confirmed
   tracks per hour with its Poisson 95 % upper bound, track breaks, duplicates, GOSPA, P_D. The
   operating point, rho_D, is chosen on the calibration runs from :func:`rho_grid` (:data:`RHO_FACTORS`
-  times the head's preset value): the largest mean CTTR among the values with no false confirmed track
-  there (the smallest rho_D if none has none).
+  times the head's preset value) by :data:`DIVER_RULE` (the smallest rho_D if none is free of false
+  tracks).
 * ``school``: ``imaging_school``, reduced frames, IMM-JIPDA against IMM-IPDA on the same detections,
   each tracker at its T_c of least mean GOSPA on the calibration runs (:data:`T_GRID`), the paired
   GOSPA difference with Bonferroni-corrected intervals per evaluation seed set and pooled. The
@@ -44,6 +44,7 @@ from sonar_tracking.studies.evidence import (
     Correction,
     SeedSplit,
     choose_minimum,
+    choose_smallest_within_one_se,
     compare,
     format_comparisons,
     per_run_values,
@@ -60,8 +61,8 @@ from sonar_tracking.studies.imaging_study import (
 )
 from sonar_tracking.studies.montecarlo import RunPool, run_seeds
 
-__all__ = ['PARTS', 'PFA_GRID', 'CFAR_METHODS', 'RHO_FACTORS', 'rho_grid', 'T_GRID', 'REDUCED', 'TUNED_ON', 'run_table',
-           'format_table', 'Sizes', 'with_comparisons']
+__all__ = ['PARTS', 'PFA_GRID', 'CFAR_METHODS', 'RHO_FACTORS', 'DIVER_RULE', 'rho_grid', 'T_GRID', 'REDUCED',
+           'TUNED_ON', 'run_table', 'format_table', 'Sizes', 'with_comparisons']
 
 PARTS = ('roc', 'esc', 'static', 'diver', 'school')
 SENSOR = 'oculus_m750d'
@@ -196,6 +197,13 @@ def _tracking_summary(rs: list[dict], method: str) -> dict:
             'false_per_hour_upper95': poisson_upper(false, hours)}
 
 
+#: How the diver part chooses rho_D (:func:`~.evidence.choose_smallest_within_one_se`). A smaller rho_D
+#: lets fewer false detections through, so where CTTR cannot tell the values apart the one that risks
+#: fewer false tracks wins.
+DIVER_RULE = ('the smallest rho_D whose mean CTTR on the calibration runs lies within one standard error of '
+              'the largest, among the rho_D with no false confirmed track there (the one-standard-error rule)')
+
+
 def rho_grid(sensor: str) -> tuple[float, ...]:
     """The diver part's candidate rho_D of ``sensor`` [1/m^2]: :data:`RHO_FACTORS` times its preset's
     ``esc.desired_clutter_density``."""
@@ -206,14 +214,16 @@ def rho_grid(sensor: str) -> tuple[float, ...]:
 def _diver(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
     base = ImagingRun('imaging_diver', sizes.sensor, sizes.scale, sizes.diver_frames)
     grid = rho_grid(sizes.sensor)
-    calibration = []
+    cttrs, false = [], []
     for rho in grid:
         run = replace(base, detector=(('esc.desired_clutter_density', rho),))
         rs = [r for v in _runs(run, split.calibration, sizes.calibration_runs, pool, progress).values() for r in v]
-        calibration.append({'rho_d': rho, 'cttr': float(np.mean([r['ipda']['cttr'] for r in rs])),
-                            'false_tracks': int(sum(r['ipda']['false_tracks'] for r in rs))})
-    clean = [c for c in calibration if c['false_tracks'] == 0]
-    chosen = max(clean, key=lambda c: c['cttr'])['rho_d'] if clean else grid[0]
+        cttrs.append([r['ipda']['cttr'] for r in rs if math.isfinite(r['ipda']['cttr'])])
+        false.append(int(sum(r['ipda']['false_tracks'] for r in rs)))
+    rule = choose_smallest_within_one_se(grid, cttrs, [f == 0 for f in false])
+    calibration = [{'rho_d': rho, 'cttr': m, 'cttr_se': se, 'false_tracks': f}
+                   for rho, m, se, f in zip(grid, rule['means'], rule['ses'], false)]
+    chosen = rule['value']
     run = replace(base, detector=(('esc.desired_clutter_density', chosen),))
     runs = _runs(run, split.evaluation, sizes.runs, pool, progress)
     held = read_back(chosen, [r['detector']['desired_density'] for rs in runs.values() for r in rs])
@@ -221,8 +231,8 @@ def _diver(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
     pooled = _tracking_summary([r for rs in runs.values() for r in rs], 'ipda')
     return {'scale': sizes.scale, 'frames': sizes.diver_frames or 'scenario (120 s)', 'rho_factors': list(RHO_FACTORS),
             'calibration': calibration,
-            'rule': 'largest mean CTTR among the rho_D with no false confirmed track on the calibration runs',
-            'rho_d': chosen, 'read_back': held, 'sets': sets, 'pooled': pooled}
+            'rule': DIVER_RULE, 'cttr_bar': rule['bar'], 'rho_d': chosen, 'read_back': held, 'sets': sets,
+            'pooled': pooled}
 
 
 def _school(split: SeedSplit, sizes: Sizes, pool, progress) -> dict:
@@ -346,6 +356,10 @@ def format_table(result: dict) -> str:
             lines.append(f'| {s} | {_ci(v["cttr"])} | {v["false_tracks"]} ({v["hours"]:.2f}) | '
                          f'{v["false_per_hour_upper95"]:.3g} | {_ci(v["breaks"])} | {_ci(v["duplicates"])} | '
                          f'{_ci(v["gospa"])} | {_ci(v["pd"])} | {_ci(v["false_per_frame"])} |')
+        cal = '; '.join(f'{c["rho_d"]:g}: CTTR {c["cttr"]:.4f}'
+                        + (f' ± {c["cttr_se"]:.4f}' if c.get('cttr_se') is not None else '')
+                        + f', {c["false_tracks"]} false' for c in d['calibration'])
+        lines += ['', f'Calibration runs by rho_D [/m^2] (mean CTTR ± standard error, false confirmed tracks): {cal}.']
     if 'school' in result:
         sc = result['school']
         corr = Correction(sc['correction']['intervals'], sc['correction']['family_level'])

@@ -20,6 +20,7 @@ from sonar_tracking.studies.evidence import (
     agreement,
     choose_minimum,
     choose_smallest_meeting,
+    choose_smallest_within_one_se,
     compare,
     format_comparisons,
     grid_edge,
@@ -77,6 +78,26 @@ def test_operating_point_rules():
     with pytest.raises(ValueError):
         choose_minimum([1, 2], [float('nan')] * 2)
     assert [grid_edge(i, grid) for i in range(4)] == ['lowest', None, None, 'highest']
+
+
+def test_the_one_standard_error_rule_takes_the_smallest_value_within_the_best_values_noise():
+    rng = np.random.default_rng(7)
+    noise = rng.normal(0.0, 0.02, 20)                      # standard error of each mean: about 0.0045
+    grid = [1.0, 2.0, 3.0]
+    # 2 and 3 differ by far less than their noise; 1 lies 0.05 below
+    samples = [0.92 + noise, 0.970 + noise[::-1], 0.971 + noise]
+    c = choose_smallest_within_one_se(grid, samples)
+    assert c['value'] == 2.0 and c['allowed_any']
+    assert c['bar'] == pytest.approx(0.971 + noise.mean() - noise.std(ddof=1) / np.sqrt(20))
+    assert c['means'][2] == pytest.approx(0.971 + noise.mean()) and len(c['ses']) == 3
+    # a value not allowed never wins nor sets the bar
+    assert choose_smallest_within_one_se(grid, samples, [True, False, True])['value'] == 3.0
+    # a clear winner is not overruled by a smaller value outside its noise
+    assert choose_smallest_within_one_se(grid, [0.5 + noise, 0.6 + noise, 0.9 + noise])['value'] == 3.0
+    none = choose_smallest_within_one_se(grid, samples, [False] * 3)
+    assert none['value'] == 1.0 and not none['allowed_any']
+    with pytest.raises(ValueError):
+        choose_smallest_within_one_se(grid, samples[:2])
 
 
 def test_paper_range_marks_a_value_outside_with_its_reason():
