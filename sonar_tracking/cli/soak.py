@@ -74,7 +74,9 @@ def add_arguments(parser) -> None:
     parser.add_argument('--nodes', nargs='+', choices=NODES, default=list(NODES), metavar='NODE',
                         help=f'nodes to soak (default all: {" ".join(NODES)})')
     parser.add_argument('--load', action=argparse.BooleanOptionalAction, default=True,
-                        help='run one busy-looping process per CPU beside the nodes')
+                        help='run busy-looping processes beside the nodes (--load-processes of them)')
+    parser.add_argument('--load-processes', type=int, default=None, metavar='N',
+                        help='how many busy-looping processes --load runs (default one per CPU)')
     parser.add_argument('--seed', type=int, default=1, help='seed of the inputs and of the outputs waited for')
     parser.add_argument('--start-timeout', type=float, default=180.0,
                         help='seconds a node may take from its start to its outputs (the first start after an '
@@ -86,10 +88,11 @@ def add_arguments(parser) -> None:
 def main_args(args) -> int:
     """Run the soak; print the table and write the JSON."""
     from sonar_tracking.cli._output import write_json
-    if args.cycles < 1 or args.start_timeout <= 0 or args.stop_timeout <= 0:
-        print('error: need --cycles >= 1 and positive timeouts', file=sys.stderr)
+    if args.cycles < 1 or args.start_timeout <= 0 or args.stop_timeout <= 0 or (args.load_processes or 1) < 1:
+        print('error: need --cycles >= 1, --load-processes >= 1 and positive timeouts', file=sys.stderr)
         return 2
     result = run_soak(list(dict.fromkeys(args.nodes)), args.cycles, load=args.load, seed=args.seed,
+                      load_processes=args.load_processes,
                       start_timeout=args.start_timeout, stop_timeout=args.stop_timeout, progress=print)
     print(format_table(result))
     if args.json:
@@ -395,9 +398,11 @@ def start_load(n: int | None = None) -> list[subprocess.Popen]:
 
 
 def run_soak(nodes: list[str], cycles: int, *, load: bool = True, seed: int = 1, start_timeout: float = 180.0,
-             stop_timeout: float = 30.0, progress: Callable[[str], None] = lambda text: None) -> dict:
-    """``cycles`` start-work-stop cycles of each of ``nodes``; the result (``passed`` when every
-    cycle did, per node the counts of each outcome, exit statuses, times and failed cycles)."""
+             stop_timeout: float = 30.0, progress: Callable[[str], None] = lambda text: None,
+             load_processes: int | None = None) -> dict:
+    """``cycles`` start-work-stop cycles of each of ``nodes``, with ``load_processes`` busy loops beside
+    them when ``load`` (default one per CPU); the result (``passed`` when every cycle did, per node
+    the counts of each outcome, exit statuses, times and failed cycles)."""
     from sonar_tracking.ros.runtime import configure_dds, private_domain, start_ros
     configure_dds()
     domain = private_domain()   # before ROS starts: the nodes of the soak and this process see only each other
@@ -406,7 +411,7 @@ def run_soak(nodes: list[str], cycles: int, *, load: bool = True, seed: int = 1,
     t0 = time.monotonic()
     start_ros([])   # without rclpy's signal thread: Ctrl-C is a KeyboardInterrupt here, and the cleanup runs
     driver = Driver()
-    hogs = start_load() if load else []
+    hogs = start_load(load_processes) if load else []
     result: dict[str, Any] = {'cycles': cycles, 'load_processes': len(hogs), 'seed': seed, 'domain': domain,
                               'nodes': {}, 'skipped': {}}
     try:
