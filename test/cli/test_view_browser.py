@@ -90,18 +90,34 @@ def run_in_browser(browser, name: str, tmp_path: Path, entity: str, settings: tu
         stack.line('sonar_view keeps the whole run')
         assert stack.proc.poll() is None
 
+        def counts(columns: dict) -> dict:
+            return {(e, c): len(rows) for e, cs in columns.items() for c, rows in cs.items()}
+
+        seen: dict = {}
+
         def whole_run():
-            # Everything the view logged (its file, read as it grows) is in the page.
+            # Everything the view logged is in the page: every column of its file at least as many rows,
+            # the file unchanged for 2 s (the view may still drain its queue after the pipeline ends).
             data = browser.recording()
             if data is None or not rrd.exists():
                 return None
+            size = rrd.stat().st_size
+            if seen.get('size') != size:
+                seen.update(size=size, since=time.monotonic())
             try:
                 cols, logged = rrd_columns(data), rrd_columns(rrd)
             except ValueError:      # no recording store in it yet: the page (or the file) is still empty
                 return None
-            rows = len(cols.get(entity, {}).get('Points2D:positions', []))
-            return (cols, data) if rows and rows == len(logged[entity]['Points2D:positions']) else None
-        cols, data = wait_for(f'the page to hold the rows of {entity} the view logged', whole_run, 180.0)
+            steady = time.monotonic() - seen['since'] >= 2.0 and rrd.stat().st_size == size
+            page, file = counts(cols), counts(logged)
+            seen['differ'] = {k: (page.get(k, 0), n) for k, n in file.items() if page.get(k, 0) < n}
+            whole = cols.get(entity, {}).get('Points2D:positions') and not seen['differ']
+            return (cols, data) if steady and whole else None
+        try:
+            cols, data = wait_for(f'the page to hold every row the view logged, {entity} among them', whole_run,
+                                  300.0)
+        except AssertionError as e:
+            raise AssertionError(f'{e}; rows (page, file) where the page has fewer: {seen.get("differ")}') from None
         lag = time.time() - float(finished.group(1))
         print(f'{name}: the page held the whole run {lag:.1f} s after the last sector; its newest row was '
               f'logged {latest_log_time(data) - float(finished.group(1)):.1f} s after it')
