@@ -35,7 +35,8 @@ started first; nodes with ``wait_for`` then also wait for the recorder to listen
 likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`` passes it options),
 logging every record message of the whole run (``--always --qos reliable``), and runs a simulator
 that the stack file runs at full speed in real time (``rate`` 1) instead, unless ``--set`` gives its
-rate; when the pipeline ends
+rate; a node's ``view_parameters`` (``{rate: 0.25}``) replace its parameters under ``--view`` alone,
+where ``--set`` does not give them; when the pipeline ends
 by itself, the stack stops its nodes but keeps the view serving the run to a browser until Ctrl-C
 or SIGTERM (which during the run stop the view with the rest).
 
@@ -123,6 +124,7 @@ class NodeSpec:
     wait_for: dict = field(default_factory=dict)
     namespace: str = '/'
     wait_ready: bool = False
+    view_parameters: dict = field(default_factory=dict)
 
 
 @dataclass
@@ -176,7 +178,7 @@ def _resolve(path: str, base: Path) -> Path:
 _NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
 _STACK_KEYS = {'nodes', 'on_exit', 'max_restarts', 'stop_delay', 'record', 'namespace'}
 _NODE_KEYS = {'executable', 'params_file', 'parameters', 'remappings', 'on_exit', 'args', 'wait_for', 'namespace',
-              'wait_ready'}
+              'wait_ready', 'view_parameters'}
 
 
 def _namespace(text, where: str) -> str:
@@ -246,6 +248,9 @@ def load_stack(path: Path) -> StackConfig:
         wait_ready = spec.get('wait_ready', False)
         if not isinstance(wait_ready, bool):
             raise StackError(f'{path}: node {name}: wait_ready must be true or false, not {wait_ready!r}')
+        view_parameters = spec.get('view_parameters') or {}
+        if not isinstance(view_parameters, dict):
+            raise StackError(f'{path}: node {name}: view_parameters must map parameter names to values')
         nodes.append(NodeSpec(name=name, executable=exe,
                               params_file=(_resolve(spec['params_file'], path.parent) if spec.get('params_file')
                                            else None),
@@ -254,7 +259,8 @@ def load_stack(path: Path) -> StackConfig:
                               extra_args=[str(a) for a in spec.get('args') or []], wait_for=dict(wait_for),
                               namespace=_join(stack_ns, _namespace(spec.get('namespace', ''),
                                                                    f'{path}: node {name}: namespace')),
-                              wait_ready=wait_ready))
+                              wait_ready=wait_ready,
+                              view_parameters={k: _number(v) for k, v in view_parameters.items()}))
     record = data.get('record') or {}
     return StackConfig(nodes=nodes, max_restarts=int(data.get('max_restarts', 3)),
                        record_topics=list(record.get('topics') or []), stop_delay=float(data.get('stop_delay', 1.0)),
@@ -305,18 +311,23 @@ def apply_settings(config: StackConfig, settings: list[str]) -> None:
         nodes[node].parameters[param] = _number(parsed)
 
 
-def real_time_for_view(config: StackConfig, settings: list[str]) -> list[str]:
-    """``--view``: every simulator of the stack (``seaking_sim``) that its file runs at full speed
-    (``rate`` 0) and whose rate ``settings`` do not set runs in real time (``rate`` 1) instead, so
-    that a browser keeps up with the run; returns their names."""
+def real_time_for_view(config: StackConfig, settings: list[str]) -> list[tuple[str, float]]:
+    """``--view``: a node's ``view_parameters`` replace its parameters, and a simulator of the stack
+    (``seaking_sim``) that its file runs at full speed (``rate`` 0) runs in real time (``rate`` 1)
+    instead, so that a browser keeps up with the run; what ``settings`` (``--set``) give stays. Returns
+    the simulators whose rate changed, with the rate."""
     given = {text.partition('=')[0].strip() for text in settings}
-    names = []
+    changed = []
     for spec in config.nodes:
-        if (spec.executable == 'seaking_sim' and f'{spec.name}.rate' not in given
-                and spec.parameters.get('rate') in (0, 0.0)):
-            spec.parameters['rate'] = 1.0
-            names.append(spec.name)
-    return names
+        view = dict(spec.view_parameters)
+        if spec.executable == 'seaking_sim' and 'rate' not in view and spec.parameters.get('rate') in (0, 0.0):
+            view['rate'] = 1.0
+        for key, value in view.items():
+            if f'{spec.name}.{key}' not in given:
+                spec.parameters[key] = value
+                if key == 'rate' and spec.executable == 'seaking_sim':
+                    changed.append((spec.name, float(value)))
+    return changed
 
 
 def sensor_presets() -> dict[str, Path]:
@@ -744,9 +755,10 @@ def main(argv: list[str] | None = None) -> int:
         from sonar_tracking.cli.sonar_view import MISSING
         print(f'error: {MISSING}', file=sys.stderr)
         return 2
-    for name in live:
-        print(f'[sonar_stack] --view: {name} runs in real time (rate 1), as the sensor would, so that the page keeps '
-              f'up; --set {name}.rate=0 runs it at full speed', flush=True)
+    for name, rate in live:
+        pace = 'in real time (rate 1), as the sensor would' if rate == 1.0 else f'at rate {rate:g} of real time'
+        print(f'[sonar_stack] --view: {name} runs {pace}, so that the page keeps up; --set {name}.rate=0 runs it '
+              f'at full speed', flush=True)
     return run(config, args.record, view=args.view)
 
 

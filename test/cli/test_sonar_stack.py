@@ -470,8 +470,8 @@ def test_the_nodes_with_a_status_are_the_processing_nodes():
 
 def test_a_stack_with_a_view_runs_its_simulator_in_real_time_unless_told_otherwise(capsys):
     """``--view``: a simulator the stack runs at full speed runs as the sensor would (rate 1), so that
-    the page keeps up; a rate given with ``--set`` or a stack file's own rate stays, and without
-    ``--view`` the file's rate (full speed) stays."""
+    the page keeps up; a node's ``view_parameters`` apply under ``--view`` alone; a rate given with
+    ``--set`` stays, and without ``--view`` the file's rate (full speed) stays."""
     from sonar_tracking.cli.sonar_stack import main
 
     def sim_line(*args: str, stack: str = 'harbour') -> str:
@@ -481,4 +481,6 @@ def test_a_stack_with_a_view_runs_its_simulator_in_real_time_unless_told_otherwi
     assert 'rate:=1.0' in sim_line('--view')
     assert 'rate:=0.0' in sim_line()
     assert 'rate:=4' in sim_line('--view', '--set', 'seaking_sim.rate=4')
-    assert 'rate:=0.5' in sim_line('--view', stack='imaging')    # half real time: the frames cost CPU
+    assert 'rate:=0.25' in sim_line('--view', stack='imaging')   # the file's view_parameters
+    assert 'rate:=0.5' in sim_line(stack='imaging')              # half real time: the frames cost CPU
+    assert 'rate:=0.5' in sim_line('--view', '--set', 'seaking_sim.rate=0.5', stack='imaging')

@@ -380,3 +380,44 @@ def test_viewer_connected_sees_established_connections_to_its_port():
         client.close()
         conn.close()
         assert not viewer_connected(port)
+
+
+def _varint(n: int) -> bytes:
+    out = b''
+    while True:
+        out += bytes([n & 0x7F | (0x80 if n > 0x7F else 0)])
+        n >>= 7
+        if not n:
+            return out
+
+
+def _field(number: int, value) -> bytes:
+    if isinstance(value, int):
+        return _varint(number << 3) + _varint(value)
+    return _varint(number << 3 | 2) + _varint(len(value)) + value
+
+
+def test_the_timeline_range_is_read_from_the_viewer_state():
+    """The page's newest row comes from the viewer's state (Rerun 0.41's GetStateResponse: field 3 the
+    recording, its field 2 a timeline with name {1: name} and range {1: min, 2: max})."""
+    from sonar_tracking.cli.view.browser import timeline_range
+
+    def timeline(name: str, lo: int, hi: int) -> bytes:
+        return _field(2, _field(1, _field(1, name.encode())) + _field(2, 3) + _field(3, _field(1, lo) + _field(2, hi)))
+    recording = (_field(1, b'Recording:sonar_view:1') + timeline('time', 5, 9)
+                 + timeline('log_time', 1_795_820_728_570_401_707, 1_795_820_735_877_934_713))
+    state = _field(1, b'about:recording') + _field(3, recording) + _field(6, b'0.41.0')
+    lo, hi = timeline_range(state, 'log_time')
+    assert lo == pytest.approx(1_795_820_728.570_401_7) and hi == pytest.approx(1_795_820_735.877_934_7)
+    assert timeline_range(state, 'time') == pytest.approx((5e-9, 9e-9))
+    assert timeline_range(state, 'frame') == (None, None)
+    assert timeline_range(_field(1, b'about:recording'), 'log_time') == (None, None)   # no recording yet
+
+
+def test_the_page_lag_is_the_age_of_the_oldest_row_it_lacks():
+    from sonar_tracking.cli.view.browser import page_lags
+    logged = [10.0, 11.0, 12.0, 15.0]
+    polls = [(9.5, None), (10.5, None), (12.8, 10.0), (13.0, 12.0), (14.9, 12.0), (15.4, 12.0), (16.0, 15.0)]
+    # nothing logged yet; row 10 missing 0.5 s; rows 11 and 12 missing, 11 for 1.8 s; all held; nothing newer
+    # logged (a quiet sensor is no lag); row 15 missing 0.4 s; all held
+    assert page_lags(polls, logged) == pytest.approx([0.0, 0.5, 1.8, 0.0, 0.0, 0.4, 0.0])

@@ -10,28 +10,33 @@ the span between the ``SKIP``-th and the last ``/tracks`` message as the recorde
 over the scans between (the first scans include the processes settling). The ratios of the medians
 to the plain one are the view's cost to the pipeline's throughput.
 
-Browser lag (``view.browser_*``): ``sonar_view --always --qos reliable`` (what ``sonar_stack --view``
-runs) with Debian's headless Chromium (software WebGL, no GPU) showing it in a 1600 x 1000 page; once
-the page's viewer is up, a stack runs. Every ``POLL`` seconds the page is asked for the recording it
-holds (:meth:`Chromium.recording`) and the newest ``log_time`` in it (when the view logged that row)
-is compared with the wall clock: the lag while the stack runs is ``now - newest``, from ``WARM_UP_S``
-after the simulator starts (the page first builds its layout as the topics appear) to its last
-sector. The end lag is from the simulator's last sector (the wall-clock stamp of its "finished"
-line) to the first poll at which the page holds the last rows the view logged; ``view_s`` and
-``page_s`` split it into the view's part (its last row logged) and the page's. The polls themselves
-cost the page some work, so the figures are upper bounds. ``view.browser_{harbour,fls,imaging}`` run
-the shipped stacks as ``sonar_stack --view`` runs them (a full-speed simulator in real time, the
-imaging one at its file's half real time) for ``LIVE_SECONDS`` and report the end lag, and the
-median and largest lag while they ran; ``view.browser_harbour_full_speed`` runs the harbour stack at
-its file's full speed.
-``view.browser_rates`` runs the harbour stack at ``RATES`` scans per second for ``RATE_SECONDS`` of
-wall-clock time each, in rising order until the page falls more than ``KEEP_UP_S`` behind, and
-states the highest rate it kept up with. Registered only where the view
-extra (Rerun) and a Chromium are installed.
+Browser lag (``view.browser_*``): ``sonar_view --always --qos reliable`` (what ``sonar_stack
+--view`` runs) with Debian's headless Chromium (software WebGL, no GPU) showing it in a 1600 x 1000
+page; once the page's viewer is up, a stack runs. Every ``POLL`` seconds the page is asked for the
+newest ``log_time`` of the rows it holds (when the view logged that row;
+:meth:`Chromium.newest_log_time`, from the viewer's state, so the page does no work for it). The
+view also saves what it logs (``--save``); the lag at a poll is the age of the oldest row the view
+had logged and the page did not hold yet (:func:`~sonar_tracking.cli.view.browser.page_lags`). The
+lag while the stack runs counts the polls from ``WARM_UP_S`` after the simulator starts (the page
+first builds its layout as the topics appear; the largest lag before that is reported apart, as
+``startup_lag_max_s``) to its last sector. The end lag is from the
+simulator's last sector (the wall-clock stamp of its "finished" line) to the first poll at which the
+page holds the last rows the view logged; ``view_s`` and ``page_s`` split it into the view's part
+(its last row logged) and the page's. ``view.browser_{harbour,fls,imaging}`` run the shipped stacks
+as ``sonar_stack --view`` runs them (a full-speed simulator in real time, the imaging one at a
+quarter of real time: its stack file's ``view_parameters``) for ``LIVE_SECONDS`` and report the end
+lag, and the median, 95th percentile and largest lag while they ran;
+``view.browser_harbour_full_speed`` runs the harbour stack at its file's full speed.
+``view.browser_rates`` (the harbour stack at ``RATES`` scans per second) and
+``view.browser_imaging_rates`` (the imaging stack at ``IMAGING_RATES`` of real time) run for
+``RATE_SECONDS`` of wall-clock time each, in rising order until the page falls more than
+``KEEP_UP_S`` behind, and state the highest rate kept up with. Registered only where the view extra
+(Rerun) and a Chromium are installed.
 """
 from __future__ import annotations
 
 import importlib.util
+import math
 import os
 import re
 import shutil
@@ -51,10 +56,11 @@ SKIP = 20
 KINDS = (None, 'gated', 'stack')  # no view; a view without a browser (gated); sonar_stack --view
 _RUNS: dict[str | None, list[float]] = {}
 
-POLL = 1.0
-WARM_UP_S = 5.0
+POLL = 0.25
+WARM_UP_S = 10.0
 KEEP_UP_S = 2.0
 RATES = (1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0)
+IMAGING_RATES = (0.125, 0.25, 0.5, 1.0)   # of real time: 2.5, 5, 10 and 20 frames a second
 RATE_SECONDS = 20.0
 LIVE_SECONDS = 30.0
 _EXTRA: dict[str, dict] = {}
@@ -140,7 +146,7 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
     ``sonar_view`` of it; returns ``run_lags`` (the page's lag at each poll while the stack ran [s]),
     ``end_lag`` (the simulator's last sector to the page holding the last rows [s]) and ``scans``."""
     from sonar_tracking import process
-    from sonar_tracking.cli.view.browser import Chromium, latest_log_time
+    from sonar_tracking.cli.view.browser import Chromium, log_times, page_lags
     from sonar_tracking.ros.runtime import private_domain
     private_domain()
     tmp = Path(tempfile.mkdtemp(prefix='bench_view_browser_'))
@@ -152,7 +158,9 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
                                       preexec_fn=process.child_dies_with_parent()))
         return procs[-1]
     try:
-        view = start(['sonar_tracking.cli.sonar_view', '--always', '--qos', 'reliable', *view_args], 'view.log')
+        saved = tmp / 'view.rrd'   # every row the view logged, with its log_time
+        view = start(['sonar_tracking.cli.sonar_view', '--always', '--qos', 'reliable', '--save', str(saved),
+                      *view_args], 'view.log')
         url = _wait_line(tmp / 'view.log', r'view: (\S+)', view, 60).group(1)
         with Chromium() as page:
             page.open(url)
@@ -168,8 +176,7 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
             while time.monotonic() < deadline:
                 time.sleep(POLL)
                 running = run.poll() is None
-                rec = page.recording()
-                polls.append((time.time(), latest_log_time(rec) if rec else None, running))
+                polls.append((time.time(), page.newest_log_time(), running))
                 latest = polls[-1][1]
                 steady = steady + 1 if not running and latest == last else 0
                 last = latest
@@ -180,13 +187,17 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
         if m is None or run.returncode != 0:
             raise RuntimeError(f'the stack did not finish (status {run.returncode}):\n{text[-2000:]}')
         finished, scans = float(m.group(1)), int(m.group(2))
-        final = max(t for _, t, _ in polls if t is not None)
-        reached = next(when for when, t, _ in polls if t is not None and t >= final)
+        logged = log_times(saved)
+        final = logged[-1]
+        reached = next((when for when, t, _ in polls if t is not None and t >= final), math.inf)
         started = float(re.search(r'\[seaking_sim\] \[INFO\] \[(\d+\.\d+)\] \[seaking_sim\]: starting', text).group(1))
-        run_lags = [when - t for when, t, running in polls
-                    if running and t is not None and started + WARM_UP_S <= when <= finished]
+        lags = page_lags([(when, t) for when, t, _ in polls], logged)
+        run_lags = [lag for lag, (when, _, running) in zip(lags, polls, strict=True)
+                    if running and started + WARM_UP_S <= when <= finished]
+        startup = [lag for lag, (when, _, running) in zip(lags, polls, strict=True)
+                   if running and when < started + WARM_UP_S]
         return {'run_lags': run_lags, 'end_lag': max(0.0, reached - finished), 'scans': scans,
-                'view_lag': final - finished, 'page_lag': reached - final}
+                'view_lag': final - finished, 'page_lag': reached - final, 'startup_lag_max': max(startup, default=0.0)}
     finally:
         for p in procs:
             _stop(p)
@@ -198,29 +209,36 @@ def _shipped(name: str, stack: str, settings: list[str]):
         got = browser_lag(stack, settings)
         lags = got['run_lags'] or [float('nan')]
         _EXTRA[name] = {'scans': got['scans'], 'run_lag_median_s': float(np.median(lags)),
-                        'run_lag_max_s': max(lags), 'end_lag_s': got['end_lag'], 'view_s': got['view_lag'],
-                        'page_s': got['page_lag']}
+                        'run_lag_p95_s': float(np.percentile(lags, 95)), 'run_lag_max_s': max(lags),
+                        'end_lag_s': got['end_lag'], 'view_s': got['view_lag'], 'page_s': got['page_lag'],
+                        'startup_lag_max_s': got['startup_lag_max']}
         return [max([got['end_lag'], *got['run_lags']])]   # the worst lag, while it ran and at its end
     return measure
 
 
-def _rates() -> list[float]:
-    """End lags, rate by rate, until one exceeds ``KEEP_UP_S``; returns the one at the highest rate kept."""
-    lags: dict[float, dict] = {}
-    kept = None
-    for rate in RATES:
-        got = browser_lag('harbour', [f'seaking_sim.rate={rate:g}',
-                                      f'seaking_sim.duration={max(10.0, rate * RATE_SECONDS):g}'])
-        worst = max([got['end_lag'], *got['run_lags']])
-        lags[rate] = {'end': got['end_lag'], 'worst': worst, 'median': float(np.median(got['run_lags'] or [np.nan]))}
-        if worst > KEEP_UP_S:
-            break
-        kept = rate
-    _EXTRA['view.browser_rates'] = {
-        'highest_rate_kept_scans_per_s': kept if kept is not None else 0.0,
-        'lag_by_rate_s (median/worst)': ', '.join(f'{r:g}/s {v["median"]:.2f}/{v["worst"]:.2f}'
-                                                  for r, v in lags.items())}
-    return [lags[kept]['worst'] if kept is not None else lags[RATES[0]]['worst']]
+def _rates(name: str, stack: str, rates: tuple[float, ...], per_rate: float, unit: str):
+    """The case ``name``: ``stack`` with its simulator at ``rates`` of real time (``per_rate`` ``unit``
+    each) for ``RATE_SECONDS`` of wall-clock time each, in rising order until the worst lag exceeds
+    ``KEEP_UP_S``; returns the worst lag at the highest rate kept."""
+    def measure() -> list[float]:
+        lags: dict[float, dict] = {}
+        kept = None
+        for rate in rates:
+            # the harbour scenario's sectors are 1 s of simulated time each; at least 10 of them
+            sim_s = max(10.0, rate * RATE_SECONDS) if stack == 'harbour' else rate * (RATE_SECONDS + WARM_UP_S)
+            got = browser_lag(stack, [f'seaking_sim.rate={rate:g}', f'seaking_sim.duration={sim_s:g}'])
+            worst = max([got['end_lag'], *got['run_lags']])
+            lags[rate] = {'end': got['end_lag'], 'worst': worst,
+                          'median': float(np.median(got['run_lags'] or [np.nan]))}
+            if worst > KEEP_UP_S:
+                break
+            kept = rate
+        _EXTRA[name] = {
+            f'highest_rate_kept_{unit.replace("/", "_per_")}': kept * per_rate if kept is not None else 0.0,
+            'lag_by_rate_s (median/worst)': ', '.join(f'{r * per_rate:g} {unit} {v["median"]:.2f}/{v["worst"]:.2f}'
+                                                      for r, v in lags.items())}
+        return [lags[kept]['worst'] if kept is not None else lags[rates[0]]['worst']]
+    return measure
 
 
 def _extra(name: str):
@@ -242,15 +260,22 @@ if importlib.util.find_spec('rerun') is not None:
                  f'the harbour stack as --view runs it (real time, 1 scan/s), {LIVE_SECONDS:g} scans'),
                 ('view.browser_fls', 'fls', ['seaking_sim.rate=1', f'seaking_sim.duration={LIVE_SECONDS:g}'],
                  f'the FLS stack as --view runs it (real time), {LIVE_SECONDS:g} s'),
-                ('view.browser_imaging', 'imaging', [f'seaking_sim.duration={LIVE_SECONDS:g}'],
-                 f'the imaging stack as --view runs it (its file\'s 10 frames/s), {LIVE_SECONDS:g} s of frames'),
+                ('view.browser_imaging', 'imaging',
+                 ['seaking_sim.rate=0.25', f'seaking_sim.duration={LIVE_SECONDS / 4:g}'],
+                 f'the imaging stack as --view runs it (5 frames/s), {LIVE_SECONDS:g} s'),
                 ('view.browser_harbour_full_speed', 'harbour', [],
                  'the harbour stack at full speed (its file\'s rate 0, 100 scans)')):
             register(Case(name=_name, group='view', make=lambda n=_name, s=_stack_name, a=_settings: _shipped(n, s, a),
                           self_timed=True, repeats=1, limit_s=KEEP_UP_S, derived=_extra(_name),
                           description=f'headless Chromium: the page\'s worst lag behind the stack, while it ran '
                                       f'and from its last sector to the page holding it, {_what}'))
-        register(Case(name='view.browser_rates', group='view', make=lambda: _rates, self_timed=True, repeats=1,
-                      limit_s=KEEP_UP_S, derived=_extra('view.browser_rates'),
+        register(Case(name='view.browser_rates', group='view',
+                      make=lambda: _rates('view.browser_rates', 'harbour', RATES, 1.0, 'scans/s'), self_timed=True,
+                      repeats=1, limit_s=KEEP_UP_S, derived=_extra('view.browser_rates'),
                       description='headless Chromium: the harbour stack at rising rates; the worst lag at the '
                       'highest rate it keeps up with (note: that rate)'))
+        register(Case(name='view.browser_imaging_rates', group='view',
+                      make=lambda: _rates('view.browser_imaging_rates', 'imaging', IMAGING_RATES, 20.0, 'frames/s'),
+                      self_timed=True, repeats=1, limit_s=KEEP_UP_S, derived=_extra('view.browser_imaging_rates'),
+                      description='headless Chromium: the imaging stack at 2.5, 5, 10 and 20 frames a second; the '
+                      'worst lag at the highest frame rate it keeps up with (note: that rate)'))

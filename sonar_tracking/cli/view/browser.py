@@ -22,7 +22,8 @@ from pathlib import Path
 
 from sonar_tracking import process
 
-__all__ = ['find_chromium', 'Chromium', 'rrd_columns', 'panel_names', 'latest_log_time']
+__all__ = ['find_chromium', 'Chromium', 'rrd_columns', 'panel_names', 'log_times', 'latest_log_time', 'page_lags',
+           'timeline_range']
 
 _BYTES_JS = '''(() => {{ const h = window._handle; if (!h) return null;
   let a; try {{ a = h.{method}(); }} catch (e) {{ return {{error: String(e)}}; }}
@@ -121,6 +122,19 @@ class Chromium:
         """The recording the page's viewer holds, as ``.rrd`` bytes (None before it has one)."""
         return self._bytes('save_recording')
 
+    def viewer_state(self) -> bytes | None:
+        """The page viewer's state (Rerun's Viewer Control ``GetStateResponse``, protobuf bytes), computed
+        at once and small: the active recording's timelines and their ranges, the panels; None before
+        the viewer runs."""
+        return self._bytes('viewer_state')
+
+    def newest_log_time(self) -> float | None:
+        """The newest ``log_time`` (when the view logged it, seconds of the epoch) of the rows the page
+        holds, read from :meth:`viewer_state` (the page does not serialize its recording for it, as
+        :meth:`recording` does); None before it holds a row."""
+        state = self.viewer_state()
+        return None if state is None else timeline_range(state, 'log_time')[1]
+
     def layout(self) -> bytes | None:
         """The page's active blueprint, as ``.rrd`` bytes (None before it has one)."""
         return self._bytes('save_blueprint')
@@ -189,22 +203,94 @@ def rrd_columns(rrd: Path | bytes, timeline: str = 'time') -> dict[str, dict[str
     return out
 
 
-def latest_log_time(rrd: Path | bytes) -> float | None:
-    """The latest ``log_time`` (when the view logged it, seconds of the epoch) of a recording's rows."""
+def _protobuf_fields(data: bytes):
+    """(field number, value) of a protobuf message's fields: integers for varint and fixed fields,
+    bytes for length-delimited ones (a nested message, a string or packed values)."""
+    i = 0
+
+    def varint() -> int:
+        nonlocal i
+        value = shift = 0
+        while True:
+            byte = data[i]
+            i += 1
+            value |= (byte & 0x7F) << shift
+            shift += 7
+            if byte < 0x80:
+                return value
+    while i < len(data):
+        key = varint()
+        field, wire = key >> 3, key & 7
+        if wire == 0:
+            yield field, varint()
+        elif wire in (1, 5):
+            n = 8 if wire == 1 else 4
+            yield field, int.from_bytes(data[i:i + n], 'little')
+            i += n
+        elif wire == 2:
+            n = varint()
+            yield field, data[i:i + n]
+            i += n
+        else:
+            raise ValueError(f'protobuf wire type {wire} not read here')
+
+
+def timeline_range(state: bytes, timeline: str) -> tuple[float | None, float | None]:
+    """The range of ``timeline`` in the active recording of a viewer state (:meth:`Chromium.viewer_state`),
+    in seconds (nanosecond timelines), or (None, None) without rows on it. In Rerun 0.41's
+    ``GetStateResponse`` field 3 is the active recording, its repeated field 2 a timeline: 1 its name
+    (``{1: name}``), 3 its range (``{1: min, 2: max}``)."""
+    def message(b: bytes) -> dict[int, list]:
+        out: dict[int, list] = defaultdict(list)
+        for field, value in _protobuf_fields(b):
+            out[field].append(value)
+        return out
+    for recording in message(state).get(3, []):
+        for entry in message(recording).get(2, []):
+            fields = message(entry)
+            names = [message(n).get(1, [b''])[0] for n in fields.get(1, [])]
+            if names == [timeline.encode()] and fields.get(3):
+                span = message(fields[3][0])
+                lo, hi = span.get(1, [None])[0], span.get(2, [None])[0]
+                return (None if lo is None else lo * 1e-9, None if hi is None else hi * 1e-9)
+    return None, None
+
+
+def log_times(rrd: Path | bytes) -> list[float]:
+    """The ``log_time`` of every row of a recording (when the view logged it, seconds of the epoch),
+    ascending."""
     import pyarrow as pa
     from rerun.chunk import RrdReader
     tmp: list[str] = []
-    latest = None
+    times: list[int] = []
     try:
         for chunk in RrdReader(_path(rrd, tmp)).stream():
             batch = chunk.to_record_batch()
             if 'log_time' in batch.schema.names and batch.num_rows:
-                t = max(batch.column('log_time').cast(pa.int64()).to_pylist())
-                latest = t if latest is None else max(latest, t)
+                times += batch.column('log_time').cast(pa.int64()).to_pylist()
     finally:
         for name in tmp:
             os.unlink(name)
-    return None if latest is None else latest * 1e-9
+    return sorted(t * 1e-9 for t in times if t is not None)
+
+
+def latest_log_time(rrd: Path | bytes) -> float | None:
+    """The latest ``log_time`` (when the view logged it, seconds of the epoch) of a recording's rows."""
+    times = log_times(rrd)
+    return times[-1] if times else None
+
+
+def page_lags(polls: list[tuple[float, float | None]], logged: list[float]) -> list[float]:
+    """How stale the page was at each poll ``(when, newest log_time the page held)``, given the
+    ascending ``log_time`` of every row the view logged: the age of the oldest row logged by then
+    that the page did not hold yet, 0 when it held all [s]. (The wall clock minus the newest row
+    would count the time since the view last logged anything, which a quiet sensor makes long.)"""
+    import bisect
+    out = []
+    for when, newest in polls:
+        i = 0 if newest is None else bisect.bisect_right(logged, newest)
+        out.append(when - logged[i] if i < len(logged) and logged[i] <= when else 0.0)
+    return out
 
 
 def panel_names(rrd: Path | bytes) -> list[str]:
