@@ -36,7 +36,8 @@ likewise starts ``sonar_view`` first, in the stack's namespace (``--view "ARGS"`
 logging every record message of the whole run (``--always --qos reliable``), and runs a simulator
 that the stack file runs at full speed in real time (``rate`` 1) instead, unless ``--set`` gives its
 rate; a node's ``view_parameters`` (``{rate: 0.25}``) replace its parameters under ``--view`` alone,
-where ``--set`` does not give them; when the pipeline ends
+where ``--set`` does not give them, and the file's ``view_args`` (``--fan-period 2``) come before
+``--view``'s own; when the pipeline ends
 by itself, the stack stops its nodes but keeps the view serving the run to a browser until Ctrl-C
 or SIGTERM (which during the run stop the view with the rest).
 
@@ -137,6 +138,7 @@ class StackConfig:
     record_topics: list[str] = field(default_factory=list)
     stop_delay: float = 1.0
     namespace: str = '/'
+    view_args: list[str] = field(default_factory=list)
 
 
 def _entry_points() -> dict[str, str]:
@@ -176,7 +178,7 @@ def _resolve(path: str, base: Path) -> Path:
 
 
 _NAME_TOKEN = re.compile(r'[A-Za-z_][A-Za-z0-9_]*')
-_STACK_KEYS = {'nodes', 'on_exit', 'max_restarts', 'stop_delay', 'record', 'namespace'}
+_STACK_KEYS = {'nodes', 'on_exit', 'max_restarts', 'stop_delay', 'record', 'namespace', 'view_args'}
 _NODE_KEYS = {'executable', 'params_file', 'parameters', 'remappings', 'on_exit', 'args', 'wait_for', 'namespace',
               'wait_ready', 'view_parameters'}
 
@@ -264,7 +266,7 @@ def load_stack(path: Path) -> StackConfig:
     record = data.get('record') or {}
     return StackConfig(nodes=nodes, max_restarts=int(data.get('max_restarts', 3)),
                        record_topics=list(record.get('topics') or []), stop_delay=float(data.get('stop_delay', 1.0)),
-                       namespace=stack_ns)
+                       namespace=stack_ns, view_args=_view_args(data.get('view_args'), path))
 
 
 def shipped_stacks() -> list[Path]:
@@ -309,6 +311,27 @@ def apply_settings(config: StackConfig, settings: list[str]) -> None:
         except yaml.YAMLError as exc:
             raise StackError(f'--set {text!r}: the value is not YAML: {exc}') from None
         nodes[node].parameters[param] = _number(parsed)
+
+
+def view_spec(config: StackConfig, view: str) -> NodeSpec:
+    """``--view ARGS``'s ``sonar_view``: every record message of the whole run (reliable, keep-last:
+    never blocks a writer), then the stack file's ``view_args``, then ``ARGS`` (the last of an option
+    counts)."""
+    return NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore',
+                    extra_args=['--always', '--qos', 'reliable', *config.view_args, *shlex.split(view)],
+                    namespace=config.namespace)
+
+
+def _view_args(value, path) -> list[str]:
+    """A stack file's ``view_args``: sonar_view's options under ``--view`` (a list, or one string split
+    as a shell would)."""
+    if value is None:
+        return []
+    if isinstance(value, str):
+        return shlex.split(value)
+    if isinstance(value, list):
+        return [str(v) for v in value]
+    raise StackError(f'{path}: view_args must be a list of sonar_view options or a string, not {value!r}')
 
 
 def real_time_for_view(config: StackConfig, settings: list[str]) -> list[tuple[str, float]]:
@@ -563,10 +586,7 @@ def run(config: StackConfig, record_dir: Path | None = None, grace: float = 5.0,
         for signum in (signal.SIGINT, signal.SIGTERM):
             signal.signal(signum, lambda *a: (interrupted.set(), stop.set()))
         # Started here, outside the pipeline's children, so that it outlives them.
-        # Every record message of the whole run (reliable, keep-last: never blocks a writer); ARGS may override.
-        viewer = Child(NodeSpec(name='sonar_view', executable='sonar_view', on_exit='ignore',
-                                extra_args=['--always', '--qos', 'reliable', *shlex.split(view)],
-                                namespace=config.namespace), lock)
+        viewer = Child(view_spec(config, view), lock)
         say(f'started sonar_view (pid {viewer.proc.pid})')
     for spec in specs:
         if spec.params_file is not None:

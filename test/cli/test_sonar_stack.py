@@ -484,3 +484,15 @@ def test_a_stack_with_a_view_runs_its_simulator_in_real_time_unless_told_otherwi
     assert 'rate:=0.25' in sim_line('--view', stack='imaging')   # the file's view_parameters
     assert 'rate:=0.5' in sim_line(stack='imaging')              # half real time: the frames cost CPU
     assert 'rate:=0.5' in sim_line('--view', '--set', 'seaking_sim.rate=0.5', stack='imaging')
+
+
+def test_a_stack_files_view_args_come_before_the_views_own(tmp_path):
+    from sonar_tracking.cli.sonar_stack import StackError, find_stack, load_stack, view_spec
+    fls = load_stack(find_stack('fls'))
+    assert view_spec(fls, '').extra_args == ['--always', '--qos', 'reliable', '--fan-period', '2']
+    assert view_spec(fls, '--fan-period 1 --batch 0.5').extra_args[-4:] == ['--fan-period', '1', '--batch', '0.5']
+    assert load_stack(find_stack('harbour')).view_args == []
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('view_args: {fan: 2}\nnodes: {seaking_sim: {}}\n')
+    with pytest.raises(StackError, match='view_args'):
+        load_stack(bad)

@@ -10,22 +10,22 @@ the span between the ``SKIP``-th and the last ``/tracks`` message as the recorde
 over the scans between (the first scans include the processes settling). The ratios of the medians
 to the plain one are the view's cost to the pipeline's throughput.
 
-Browser lag (``view.browser_*``): ``sonar_view --always --qos reliable`` (what ``sonar_stack
---view`` runs) with Debian's headless Chromium (software WebGL, no GPU) showing it in a 1600 x 1000
-page; once the page's viewer is up, a stack runs. Every ``POLL`` seconds the page is asked for the
-newest ``log_time`` of the rows it holds (when the view logged that row;
-:meth:`Chromium.newest_log_time`, from the viewer's state, so the page does no work for it). The
-view also saves what it logs (``--save``); the lag at a poll is the age of the oldest row the view
-had logged and the page did not hold yet (:func:`~sonar_tracking.cli.view.browser.page_lags`). The
-lag while the stack runs counts the polls from ``WARM_UP_S`` after the simulator starts (the page
-first builds its layout as the topics appear; the largest lag before that is reported apart, as
-``startup_lag_max_s``) to its last sector. The end lag is from the
-simulator's last sector (the wall-clock stamp of its "finished" line) to the first poll at which the
-page holds the last rows the view logged; ``view_s`` and ``page_s`` split it into the view's part
-(its last row logged) and the page's. ``view.browser_{harbour,fls,imaging}`` run the shipped stacks
-as ``sonar_stack --view`` runs them (a full-speed simulator in real time, the imaging one at a
-quarter of real time: its stack file's ``view_parameters``) for ``LIVE_SECONDS`` and report the end
-lag, and the median, 95th percentile and largest lag while they ran;
+Browser lag (``view.browser_*``): ``sonar_view --always --qos reliable`` with the stack file's
+``view_args`` (what ``sonar_stack --view`` runs) with Debian's headless Chromium (software WebGL, no
+GPU) showing it in a 1600 x 1000 page; once the page's viewer is up, a stack runs. Every ``POLL``
+seconds the page is asked for the newest ``log_time`` of the rows it holds (when the view logged
+that row; :meth:`Chromium.newest_log_time`, from the viewer's state, so the page does no work for
+it). The view also saves what it logs (``--save``); the lag at a poll is the age of the oldest row
+the view had logged and the page did not hold yet
+(:func:`~sonar_tracking.cli.view.browser.page_lags`). The lag while the stack runs counts the polls
+from ``WARM_UP_S`` after the simulator starts (the page first builds its layout as the topics
+appear; the largest lag before that is reported apart, as ``startup_lag_max_s``) to its last sector.
+The end lag is from the simulator's last sector (the wall-clock stamp of its "finished" line) to the
+first poll at which the page holds the last rows the view logged; ``view_s`` and ``page_s`` split it
+into the view's part (its last row logged) and the page's. ``view.browser_{harbour,fls,imaging}``
+run the shipped stacks as ``sonar_stack --view`` runs them (a full-speed simulator in real time, the
+imaging one at a quarter of real time: its stack file's ``view_parameters``) for ``LIVE_SECONDS``
+and report the end lag, and the median, 95th percentile and largest lag while they ran;
 ``view.browser_harbour_full_speed`` runs the harbour stack at its file's full speed.
 ``view.browser_rates`` (the harbour stack at ``RATES`` scans per second) and
 ``view.browser_imaging_rates`` (the imaging stack at ``IMAGING_RATES`` of real time) run for
@@ -146,6 +146,7 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
     ``sonar_view`` of it; returns ``run_lags`` (the page's lag at each poll while the stack ran [s]),
     ``end_lag`` (the simulator's last sector to the page holding the last rows [s]) and ``scans``."""
     from sonar_tracking import process
+    from sonar_tracking.cli.sonar_stack import find_stack, load_stack
     from sonar_tracking.cli.view.browser import Chromium, log_times, page_lags
     from sonar_tracking.ros.runtime import private_domain
     private_domain()
@@ -159,8 +160,9 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
         return procs[-1]
     try:
         saved = tmp / 'view.rrd'   # every row the view logged, with its log_time
+        stack_args = load_stack(find_stack(stack)).view_args   # as sonar_stack --view runs the view
         view = start(['sonar_tracking.cli.sonar_view', '--always', '--qos', 'reliable', '--save', str(saved),
-                      *view_args], 'view.log')
+                      *stack_args, *view_args], 'view.log')
         url = _wait_line(tmp / 'view.log', r'view: (\S+)', view, 60).group(1)
         with Chromium() as page:
             page.open(url)
