@@ -481,7 +481,7 @@ def test_a_stack_with_a_view_runs_its_simulator_in_real_time_unless_told_otherwi
     assert 'rate:=1.0' in sim_line('--view')
     assert 'rate:=0.0' in sim_line()
     assert 'rate:=4' in sim_line('--view', '--set', 'seaking_sim.rate=4')
-    assert 'rate:=0.25' in sim_line('--view', stack='imaging')   # the file's view_parameters
+    assert 'rate:=0.2' in sim_line('--view', stack='imaging')    # the file's view_parameters
     assert 'rate:=0.5' in sim_line(stack='imaging')              # half real time: the frames cost CPU
     assert 'rate:=0.5' in sim_line('--view', '--set', 'seaking_sim.rate=0.5', stack='imaging')
 

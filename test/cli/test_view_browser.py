@@ -205,7 +205,7 @@ def test_the_fls_stack_has_its_own_layout_and_region_ids_leave_track_ids_visible
 
 def test_the_imaging_stack_shows_its_polar_frames(browser, tmp_path):
     from sonar_tracking.cli.view.scene import PANELS
-    # 5 s of frames at --view's 5 frames a second (the stack's view_parameters); the diver is confirmed
+    # 5 s of frames at --view's 4 frames a second (the stack's view_parameters); the diver is confirmed
     # after 2.7-3.1 s.
     page, names, saved, saved_names, scans, shot = run_in_browser(
         browser, 'imaging', tmp_path, '/map/tracks/confirmed/points', ('--set', 'seaking_sim.duration=5'))
