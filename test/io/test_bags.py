@@ -213,11 +213,11 @@ class Counter:
     """A publisher of numbered images (``frame_id`` = number, stamp = wall time of publishing) on a timer
     of the test's node: every message's number and publish time are kept."""
 
-    def __init__(self, ros, topic, period=0.01, size=2000):
+    def __init__(self, ros, topic, period=0.01, size=2000, depth=100):
         from sensor_msgs.msg import Image
         self.msg = Image(height=1, width=size, encoding='mono8', step=size, data=bytes(size))
         self.pub = ros.node.create_publisher(Image, topic,
-                                             QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+                                             QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE))
         self.times = []
         self.timer = ros.node.create_timer(period, self.publish)
         self.ros = ros
@@ -391,7 +391,9 @@ def small_disk(path, size):
 def test_a_full_disk_ends_the_recording_cleanly_with_a_readable_bag(tmp_path, ros, storage):
     topic = '/bag_full_test'
     with small_disk(tmp_path / 'small', 5 << 20) as (disk, limit):
-        source = Counter(ros, topic, period=0.005, size=10000)     # 2 MB/s: full after about 2 s
+        # 2 MB/s: full after about 2 s. A history of 5 s: a reliable writer overwrites what its reader has
+        # not taken yet, and with 0.5 s one run lost 244-247, just after the bag's first three messages.
+        source = Counter(ros, topic, period=0.005, size=10000, depth=1000)
         try:
             rec = tool('bag_record', '-o', str(disk / 'bag'), '--storage', storage, topic, preexec_fn=limit)
             _, err = rec.communicate(timeout=60)
