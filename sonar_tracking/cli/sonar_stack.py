@@ -334,7 +334,7 @@ def _view_args(value, path) -> list[str]:
     raise StackError(f'{path}: view_args must be a list of sonar_view options or a string, not {value!r}')
 
 
-def real_time_for_view(config: StackConfig, settings: list[str]) -> list[tuple[str, float]]:
+def apply_view_settings(config: StackConfig, settings: list[str]) -> list[tuple[str, float]]:
     """``--view``: a node's ``view_parameters`` replace its parameters, and a simulator of the stack
     (``seaking_sim``) that its file runs at full speed (``rate`` 0) runs in real time (``rate`` 1)
     instead, so that a browser keeps up with the run; what ``settings`` (``--set``) give stays. Returns
@@ -753,7 +753,7 @@ def main(argv: list[str] | None = None) -> int:
         config = load_stack(path)
         if args.preset is not None:
             apply_preset(config, args.preset)
-        live = real_time_for_view(config, args.set) if args.view is not None else []
+        live = apply_view_settings(config, args.set) if args.view is not None else []
         apply_settings(config, args.set)
         if namespace is not None:
             move(config, namespace)
