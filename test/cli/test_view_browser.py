@@ -91,31 +91,42 @@ def run_in_browser(browser, name: str, tmp_path: Path, entity: str, settings: tu
         assert stack.proc.poll() is None
 
         def counts(columns: dict) -> dict:
-            return {(e, c): len(rows) for e, cs in columns.items() for c, rows in cs.items()}
+            # Rows on the timeline: the page keeps only the last of an entity's static rows, the file each.
+            return {(e, c): sum(t is not None for t, _ in rows) for e, cs in columns.items() for c, rows in cs.items()}
 
         seen: dict = {}
 
-        def whole_run():
-            # Everything the view logged is in the page: every column of its file at least as many rows,
-            # the file unchanged for 2 s (the view may still drain its queue after the pipeline ends).
-            data = browser.recording()
-            if data is None or not rrd.exists():
-                return None
+        def caught_up():
+            # Cheap to ask (the viewer's state, the file's size): the view's file unchanged for 2 s (it may
+            # still drain its queue after the pipeline ends) and the page holding its newest row.
+            if not rrd.exists():
+                return False
             size = rrd.stat().st_size
             if seen.get('size') != size:
-                seen.update(size=size, since=time.monotonic())
+                seen.update(size=size, since=time.monotonic(), last=None)
+            if time.monotonic() - seen['since'] < 2.0:
+                return False
+            if seen['last'] is None:
+                seen['last'] = latest_log_time(rrd)
+            newest = browser.newest_log_time()
+            return seen['last'] is not None and newest is not None and newest >= seen['last']
+
+        def whole_run():
+            # Everything the view logged is in the page: every column of its file at least as many timed rows.
+            data = browser.recording()
+            if data is None:
+                return None
             try:
                 cols, logged = rrd_columns(data), rrd_columns(rrd)
             except ValueError:      # no recording store in it yet: the page (or the file) is still empty
                 return None
-            steady = time.monotonic() - seen['since'] >= 2.0 and rrd.stat().st_size == size
             page, file = counts(cols), counts(logged)
             seen['differ'] = {k: (page.get(k, 0), n) for k, n in file.items() if page.get(k, 0) < n}
-            whole = cols.get(entity, {}).get('Points2D:positions') and not seen['differ']
-            return (cols, data) if steady and whole else None
+            return (cols, data) if cols.get(entity, {}).get('Points2D:positions') and not seen['differ'] else None
         try:
+            wait_for("the page to hold the view's newest row", caught_up, 200.0, poll=0.5)
             cols, data = wait_for(f'the page to hold every row the view logged, {entity} among them', whole_run,
-                                  300.0)
+                                  30.0, poll=1.0)
         except AssertionError as e:
             raise AssertionError(f'{e}; rows (page, file) where the page has fewer: {seen.get("differ")}') from None
         lag = time.time() - float(finished.group(1))
