@@ -71,7 +71,9 @@ def get_parameters(ros, fqn: str, names: list[str]) -> dict:
     client = ros.node.create_client(GetParameters, f'{fqn}/get_parameters')
     try:
         ros.wait(lambda: client.service_is_ready(), 120, f'{fqn}/get_parameters')
-        reply = ros.call(client, GetParameters.Request(names=names))
+        # The parameter services exist from the node's first line; it answers once it spins, after
+        # its warm-up, which four nodes starting at once on a loaded machine made take over 20 s.
+        reply = ros.call(client, GetParameters.Request(names=names), timeout=120)
     finally:
         ros.node.destroy_client(client)
     return {n: parameter_value_to_python(v) for n, v in zip(names, reply.values, strict=True)}
