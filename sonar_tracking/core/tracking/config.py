@@ -91,8 +91,8 @@ class ExistenceConfig(Config):
                                low=0.0, high=1.0, high_open=True)
     confirm_distance: float = setting(0.0, 'a track is confirmed only once its estimate has also moved this far '
                                       'from where its existence first exceeded confirm (taken again after its '
-                                      'existence fell below 1/2): static echoes (frozen speckle, a rock) are never '
-                                      'confirmed; 0 = off (not in the paper)', unit='m',
+                                      'existence fell below confirm_lapse): static echoes (frozen speckle, a rock) are '
+                                      'never confirmed; 0 = off (not in the paper)', unit='m',
                                       low=0.0, high=1e6)
     confirm_lapse: float = setting(0.5, 'with confirm_distance: a tentative track whose existence falls below this '
                                    'has lost what it followed, and its distance is counted afresh from where its '
