@@ -91,9 +91,13 @@ class ExistenceConfig(Config):
                                low=0.0, high=1.0, high_open=True)
     confirm_distance: float = setting(0.0, 'a track is confirmed only once its estimate has also moved this far '
                                       'from where its existence first exceeded confirm (taken again after its '
-                                      'existence fell below 1/2): static echoes (frozen speckle, a rock) are never '
-                                      'confirmed; 0 = off (not in the paper)', unit='m',
+                                      'existence fell below confirm_lapse): static echoes (frozen speckle, a rock) are '
+                                      'never confirmed; 0 = off (not in the paper)', unit='m',
                                       low=0.0, high=1e6)
+    confirm_lapse: float = setting(0.5, 'with confirm_distance: a tentative track whose existence falls below this '
+                                   'has lost what it followed, and its distance is counted afresh from where its '
+                                   'existence next exceeds confirm (not in the paper)', low=0.0, high=1.0,
+                                   low_open=True, high_open=True)
     decorrelation_time: float = setting(0.0, 'scans closer together than this are not independent evidence: the '
                                         'existence update (eq. 40) takes the likelihood ratio of eq. (33) to the '
                                         'power dt / decorrelation_time (at most 1), so the frames of a second weigh as '
@@ -106,6 +110,8 @@ class ExistenceConfig(Config):
             raise ConfigError(f'terminate = {self.terminate} must be < initial = {self.initial}')
         if not self.terminate < self.confirm:
             raise ConfigError(f'terminate = {self.terminate} must be < confirm = {self.confirm}')
+        if self.confirm_distance > 0 and not self.confirm_lapse < self.confirm:
+            raise ConfigError(f'confirm_lapse = {self.confirm_lapse} must be < confirm = {self.confirm}')
 
 
 @dataclass(frozen=True)

@@ -57,9 +57,10 @@ input.
 Confirmation: a track is confirmed the first time its existence exceeds ``T_c`` (with
 ``existence.confirm_distance`` d > 0, not in the paper: and its estimate has moved d from where its
 existence first exceeded ``T_c``, so a static echo detected every frame, frozen speckle of an imaging
-sonar or a rock, stays tentative; when a tentative track's existence falls below 1/2, more likely
-gone than there, that point is forgotten and taken again where its existence next exceeds ``T_c``,
-so a track that loses one still echo and picks up another nearby has not moved) and stays confirmed
+sonar or a rock, stays tentative; when a tentative track's existence falls below
+``existence.confirm_lapse`` (1/2 by default: more likely gone than there), that point is forgotten
+and taken again where its existence next exceeds ``T_c``, so a track that loses one still echo and
+picks up another nearby has not moved) and stays confirmed
 until it is terminated (the paper's FTD counts confirmed tracks per scan). Termination: existence
 below the lower threshold.
 

@@ -93,8 +93,6 @@ from sonar_tracking.core.tracking.noise import white_noise_acceleration
 __all__ = ['Mode', 'modes_from_config', 'StepReport', 'ImmIpdaTracker']
 
 _ID_SPACE = 2 ** 32
-# existence.confirm_distance is measured afresh once a tentative track's existence falls below this.
-_LAPSED = 0.5
 # Most candidate pairs gated and updated at once (bounds the per-pair arrays, ~1 kB per pair).
 _CHUNK_PAIRS = 1 << 16
 
@@ -219,7 +217,7 @@ class ImmIpdaTracker:
         # (every track inside as far as anyone knows: all NaN).
         self._outside_since: np.ndarray | None = None
         # Where each tentative track's existence passed T_c, NaN before and after it fell below
-        # _LAPSED (existence.confirm_distance).
+        # existence.confirm_lapse (existence.confirm_distance).
         self._origin = np.zeros((2, 0))
         self._t: float | None = None
         self._output = np.zeros(0, TRACK_DTYPE)
@@ -455,7 +453,7 @@ class ImmIpdaTracker:
         if before is not None:
             # A tentative track more likely gone than there has lost what it followed; if it picks up
             # another echo, its distance counts from there (not a jump between two still echoes).
-            self._origin[:, ~self._confirmed & (self._exist < _LAPSED)] = np.nan
+            self._origin[:, ~self._confirmed & (self._exist < cfg.confirm_lapse)] = np.nan
         if before is not None and rep.confirmed:
             # Confirmed only once moved from where its existence first passed T_c (a settled
             # estimate, unlike the first detection): until then it waits, tentative.
