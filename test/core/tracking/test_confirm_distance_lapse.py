@@ -1,6 +1,7 @@
-"""existence.confirm_distance after a lapse: a tentative track whose existence fell below
-existence.confirm_lapse (1/2 by default) measures its distance afresh, so a track that loses one still echo and picks up another in its gate (two peaks
-of frozen speckle) is not confirmed for the jump between them, while a moving target still is."""
+"""existence.confirm_distance after a lapse: a tentative track whose existence fell below existence.confirm_lapse
+(1/2 by default) measures its distance afresh, so a track that loses one still echo and picks up another in
+its gate (two peaks of frozen speckle) is not confirmed for the jump between them, while a moving target still
+is."""
 from __future__ import annotations
 
 import numpy as np
