@@ -451,8 +451,8 @@ class ImmIpdaTracker:
             xc, Pc, self._exist, self._confirmed, cfg.confirm, cfg.terminate,
             self.config.track.max_position_std ** 2, alive)
         if before is not None:
-            # A tentative track more likely gone than there has lost what it followed; if it picks up
-            # another echo, its distance counts from there (not a jump between two still echoes).
+            # A tentative track whose existence fell below the lapse has lost what it followed; if it
+            # picks up another echo, its distance counts from there (not a jump between two still echoes).
             self._origin[:, ~self._confirmed & (self._exist < cfg.confirm_lapse)] = np.nan
         if before is not None and rep.confirmed:
             # Confirmed only once moved from where its existence first passed T_c (a settled
