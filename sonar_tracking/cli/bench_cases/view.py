@@ -39,6 +39,7 @@ import importlib.util
 import math
 import os
 import re
+import shlex
 import shutil
 import signal
 import subprocess
@@ -147,7 +148,7 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
     ``end_lag`` (the simulator's last sector to the page holding the last rows [s]), ``worst`` (the
     largest of those, what ``KEEP_UP_S`` bounds), ``startup_lag_max`` and ``scans``."""
     from sonar_tracking import process
-    from sonar_tracking.cli.sonar_stack import find_stack, load_stack
+    from sonar_tracking.cli.sonar_stack import find_stack, load_stack, view_spec
     from sonar_tracking.cli.view.browser import Chromium, log_times, page_lags
     from sonar_tracking.ros.runtime import private_domain
     private_domain()
@@ -162,10 +163,9 @@ def browser_lag(stack: str, settings: list[str], view_args: tuple[str, ...] = ()
     try:
         saved = tmp / 'view.rrd'   # every row the view logged, with its log_time
         config = load_stack(find_stack(stack))   # the view and the nodes as sonar_stack --view runs them
-        stack_args = config.view_args
         settings = [f'{spec.name}.{k}={v}' for spec in config.nodes for k, v in spec.view_parameters.items()] + settings
-        view = start(['sonar_tracking.cli.sonar_view', '--always', '--qos', 'reliable', '--save', str(saved),
-                      *stack_args, *view_args], 'view.log')
+        viewer = view_spec(config, shlex.join(['--save', str(saved), *view_args]))
+        view = start(['sonar_tracking.cli.sonar_view', *viewer.extra_args], 'view.log')
         url = _wait_line(tmp / 'view.log', r'view: (\S+)', view, 60).group(1)
         with Chromium() as page:
             page.open(url)
