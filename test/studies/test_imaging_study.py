@@ -18,7 +18,7 @@ def test_the_front_end_is_the_preset_file_and_reduced_frames_divide_the_cell_cou
     full, trk = front_end('oculus_m750d')
     half, _ = front_end('oculus_m750d', 2)
     assert full.threshold.method == 'ca' and full.intensity.coding == 'db'
-    assert trk.existence.confirm_distance == 2.0 and full.cells.target_size == 1.8
+    assert (trk.existence.confirm_distance, trk.existence.confirm_lapse, full.cells.target_size) == (2.5, 0.9, 1.8)
     assert (full.cfar.stride_beams, full.cfar.reach_beams) == (4, 24)
     assert (half.cfar.stride_beams, half.cfar.reach_beams, half.cells.merge_bins) == (2, 12, 5)
     # The training reach still passes the guard by a stride, so CFAR has training cells.
