@@ -213,7 +213,7 @@ class Counter:
     """A publisher of numbered images (``frame_id`` = number, stamp = wall time of publishing) on a timer
     of the test's node: every message's number and publish time are kept. The default history is 10 s:
     a reliable writer overwrites what a reader has not acknowledged yet, and with 1 s (depth 100) one
-    of 20 recorders starved on a loaded CI machine lost message 913 of its 1,000 in the middle."""
+    of 20 recorders starved on a loaded CI machine lost message 913 in the middle of its 825-1,023."""
 
     def __init__(self, ros, topic, period=0.01, size=2000, depth=1000):
         from sensor_msgs.msg import Image
